@@ -1,0 +1,24 @@
+"""mavnav: a live telemetry integrity monitor for vehicle height over MAVLink.
+
+Conventions, written once:
+
+* Heights are positive up, in metres, and every height names its datum:
+  ``_msl`` (mean sea level), ``_ref`` (above the reference point, normally
+  home / the landing point), ``_agl`` (above the ground below the vehicle).
+* Units are in names: ``_m``, ``_mps``, ``_mps2``, ``_s``, ``_us``, ``_pa``.
+* Two clocks, never mixed. *Vehicle time* (``t_us``, integer microseconds,
+  from the messages' own ``time_usec`` / ``time_boot_ms``) drives every
+  filter step. *Receive time* (``recv_s``, Unix seconds) is only for link
+  health, latency and staleness.
+* The core (``kalman``, ``channel``, ``epochs``, ``monitor``) is pure and
+  deterministic: no wall clock, no I/O. Sources, sinks and the CLI are the
+  edges.
+* Channel state ``[H, Vz, dH, da]``: height above the reference, vertical
+  speed (up), barometer bias, accelerometer bias. Indices are named in
+  :mod:`mavnav.channel`.
+
+The estimator follows Ivanov, Moskvitin, Ivanov, Lezhneva (Transactions TSTU,
+2024, 30(4), 608-620) with the errata listed in ``docs/MODEL.md``.
+"""
+
+__version__ = "0.1.0"

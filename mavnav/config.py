@@ -1,0 +1,180 @@
+"""Typed, frozen configuration loaded from YAML.
+
+Every section is a frozen pydantic model that forbids unknown keys, so a
+misspelt option is refused with its dotted name instead of being silently
+ignored. :func:`load_config` turns every failure (missing file, bad YAML,
+unknown key, bad value) into a one-line :class:`~mavnav.errors.ConfigError`.
+
+Units are in the key names, as everywhere in mavnav.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal, Optional, Union
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from .errors import ConfigError
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=False)
+
+
+# ---------------------------------------------------------------- sensors
+
+
+class InsConfig(_Section):
+    """INS vertical specific-force error model (MODEL.md eq. 1-2)."""
+
+    sigma_a_mps2: float = Field(0.1, gt=0)  # RMS of the acceleration noise
+    alpha_a_per_s: float = Field(1.0, gt=0)  # spectrum width of that noise
+    bias_rw_mps2_per_sqrt_s: float = Field(0.0, ge=0)  # random walk on da (0: constant, as the paper)
+
+
+class BaroConfig(_Section):
+    """Barometric altimeter error model (MODEL.md eq. 3-5)."""
+
+    sigma_bb_m: float = Field(1.0, gt=0)  # RMS of the Gauss-Markov noise u
+    gamma_bb_per_s: float = Field(10.0, gt=0)  # its inverse correlation time
+    bias_rw_m_per_sqrt_s: float = Field(0.0, ge=0)  # random walk on dH (0: constant, as the paper)
+
+
+class GnssConfig(_Section):
+    sigma_z_m: float = Field(5.0, gt=0)  # vertical noise when v_acc is not used
+    use_v_acc: bool = True  # take sigma from the receiver's v_acc when it reports one
+    v_acc_floor_m: float = Field(0.3, ge=0)  # never trust a receiver more than this
+
+
+class RangefinderConfig(_Section):
+    sigma_m: float = Field(0.1, gt=0)
+
+
+class SensorsConfig(_Section):
+    ins: InsConfig = InsConfig()
+    baro: BaroConfig = BaroConfig()
+    gnss: GnssConfig = GnssConfig()
+    rangefinder: RangefinderConfig = RangefinderConfig()
+
+
+# ---------------------------------------------------------------- filter
+
+
+class InitialCovariance(_Section):
+    height_m2: float = Field(300.0, gt=0)
+    vel_m2ps2: float = Field(20.0, gt=0)
+    baro_bias_m2: float = Field(625.0, gt=0)
+    acc_bias_m2ps4: float = Field(0.01, gt=0)
+
+
+class FilterConfig(_Section):
+    # "consistent": q_a = sigma_a sqrt(2 / (alpha_a T)) (MODEL.md erratum);
+    # "printed": q_a = sigma_a sqrt(2 T / alpha_a), only to reproduce the paper.
+    accel_noise_form: Literal["consistent", "printed"] = "consistent"
+    p0: InitialCovariance = InitialCovariance()
+    # Covariance analysis and simulation step.
+    step_s: float = Field(0.02, gt=0)
+    # Longest interval between two filter epochs before the epoch builder
+    # forces an epoch without a baro sample (and restarts the differencing).
+    max_epoch_gap_s: float = Field(0.25, gt=0)
+    # A GNSS/rangefinder sample older than this at its epoch is dropped as late.
+    max_meas_latency_s: float = Field(0.25, gt=0)
+    # Condition the prior on the first baro sample (exactly equivalent to the
+    # state-augmented filter); otherwise the first sample only starts differencing.
+    init_from_first_baro: bool = True
+    # Gravity used in the control input W = [f_up, g].
+    gravity_mps2: float = Field(9.80665, gt=0)
+
+
+# ---------------------------------------------------------------- ingestion
+
+
+class ReferenceConfig(_Section):
+    """Where a height reference comes from: config value, HOME_POSITION, or start-up."""
+
+    source: Literal["config", "home", "startup"] = "startup"
+    value: Optional[float] = None  # Pa for the baro reference, m for the GNSS reference
+    startup_window_s: float = Field(2.0, gt=0)
+
+    @model_validator(mode="after")
+    def _value_with_config(self) -> "ReferenceConfig":
+        if self.source == "config" and self.value is None:
+            raise ValueError("source 'config' needs a value")
+        return self
+
+
+class IngestConfig(_Section):
+    baro_instance: Literal[1, 2, 3] = 1
+    gnss_altitude: Literal["msl", "ellipsoid"] = "msl"
+    min_fix_type: int = Field(3, ge=2, le=8)
+    baro_reference: ReferenceConfig = ReferenceConfig()
+    gnss_reference: ReferenceConfig = ReferenceConfig()
+    link_timeout_s: float = Field(2.0, gt=0)
+    rangefinder_stuck_s: float = Field(2.0, gt=0)  # identical readings for this long while moving = stuck
+    imu_source: Literal["auto", "HIGHRES_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3", "RAW_IMU"] = "auto"
+
+
+# ---------------------------------------------------------------- monitor
+
+
+class MonitorConfig(_Section):
+    mode: Literal["adaptive", "paper"] = "adaptive"
+    # Paper mode: fixed thresholds on |H_ch - H_baro| (MODEL.md section 5).
+    delta_gnss_m: float = Field(10.0, gt=0)
+    delta_ra_m: float = Field(5.0, gt=0)
+    time_to_alarm_s: float = Field(1.0, gt=0)
+
+
+class Config(_Section):
+    sensors: SensorsConfig = SensorsConfig()
+    filter: FilterConfig = FilterConfig()
+    ingest: IngestConfig = IngestConfig()
+    monitor: MonitorConfig = MonitorConfig()
+
+
+# ---------------------------------------------------------------- loading
+
+
+def _describe(err: dict) -> str:
+    loc = ".".join(str(p) for p in err.get("loc", ()) if p != "__root__")
+    kind = err.get("type", "")
+    if kind == "extra_forbidden":
+        return f"unknown key '{loc}'"
+    return f"{loc or 'top level'}: {err.get('msg', 'invalid')}"
+
+
+def config_from_dict(data: Union[dict, None], origin: str = "<dict>") -> Config:
+    """Validate a plain mapping into a :class:`Config` (one-line errors)."""
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{origin}: top level must be a mapping, not {type(data).__name__}")
+    try:
+        return Config.model_validate(data)
+    except ValidationError as exc:
+        errors = exc.errors()
+        first = _describe(errors[0])
+        more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
+        raise ConfigError(f"{origin}: {first}{more}") from None
+
+
+def load_config(path: Union[str, Path, None]) -> Config:
+    """Load a YAML configuration file; ``None`` gives the defaults."""
+    if path is None:
+        return Config()
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"{p}: no such configuration file") from None
+    except OSError as exc:
+        raise ConfigError(f"{p}: cannot read ({exc.strerror})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        raise ConfigError(f"{p}: not valid YAML{where}") from None
+    return config_from_dict(data, origin=str(p))

@@ -1,0 +1,155 @@
+"""Normalised samples: what the ingestion layer hands to the estimator.
+
+Every sample is in SI units, heights positive up with the datum in the name,
+and carries two clocks: ``t_us`` (vehicle time, integer microseconds since
+the vehicle's boot, from the message's own time field) and ``recv_s`` (Unix
+seconds when the ground side received it: the tlog record time, or the wall
+clock on a live link). ``boot`` counts reboots seen on this link (0 for the
+first boot); vehicle time restarts at each one.
+
+MAVLink field names never appear past this module's producers (the
+normaliser); consumers see only these types.
+
+Event types (``Reboot``, ``Gap``, ``LinkLost``, ``LinkRecovered``,
+``Rejected``, ``ReferenceSet``) travel in the same stream as the samples so
+that one ordered fold sees everything.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal, Optional, Union
+
+# --------------------------------------------------------------------------
+# Measurements
+
+
+@dataclass(frozen=True, slots=True)
+class SpecificForceUp:
+    """Vertical specific force from the IMU, rotated to the local vertical.
+
+    ``f_up_mps2 = -(R_nb f_b)_down``: about +9.81 at rest.
+    """
+
+    t_us: int
+    recv_s: float
+    boot: int
+    f_up_mps2: float
+    source: str  # e.g. "HIGHRES_IMU", "SCALED_IMU2", "RAW_IMU"
+
+
+@dataclass(frozen=True, slots=True)
+class BaroHeight:
+    """Barometric height above the reference, from static pressure (ISA)."""
+
+    t_us: int
+    recv_s: float
+    boot: int
+    height_ref_m: float
+    pressure_pa: float
+    instance: int  # 1, 2, 3 for SCALED_PRESSURE, _2, _3
+
+
+@dataclass(frozen=True, slots=True)
+class GnssHeight:
+    """GNSS height above the reference (3D fix or better only)."""
+
+    t_us: int
+    recv_s: float
+    boot: int
+    height_ref_m: float
+    alt_m: float  # the receiver's altitude in the configured datum (MSL or ellipsoid)
+    sigma_m: Optional[float]  # 1-sigma vertical accuracy (v_acc) when reported, else None
+    fix_type: int
+    satellites: int
+
+
+@dataclass(frozen=True, slots=True)
+class RangeHeight:
+    """Downward rangefinder: tilt-corrected height above ground."""
+
+    t_us: int
+    recv_s: float
+    boot: int
+    height_agl_m: float
+    range_m: float  # raw slant range along the sensor axis
+    source: str  # "DISTANCE_SENSOR" or "RANGEFINDER"
+
+
+@dataclass(frozen=True, slots=True)
+class AutopilotHeight:
+    """The autopilot's own height estimate, for comparison only (never fused)."""
+
+    t_us: int
+    recv_s: float
+    boot: int
+    height_ref_m: float
+    source: str  # "GLOBAL_POSITION_INT" or "LOCAL_POSITION_NED"
+
+
+# --------------------------------------------------------------------------
+# Events
+
+
+@dataclass(frozen=True, slots=True)
+class ReferenceSet:
+    """A height reference was fixed (or changed)."""
+
+    t_us: int
+    recv_s: float
+    boot: int
+    kind: Literal["baro", "gnss"]
+    value: float  # baro: reference pressure in Pa; gnss: reference altitude in m
+    alt_ref_msl_m: Optional[float]  # the reference point's altitude MSL when known
+    origin: Literal["config", "home", "startup"]
+
+
+@dataclass(frozen=True, slots=True)
+class Reboot:
+    """Vehicle time jumped back: the vehicle rebooted. The pipeline restarts."""
+
+    t_us: int  # first vehicle time after the reboot
+    recv_s: float
+    boot: int  # the new boot index
+    last_t_us: int  # last vehicle time before it
+
+
+@dataclass(frozen=True, slots=True)
+class Gap:
+    """A stream of one kind was silent for longer than expected."""
+
+    t_us: int  # vehicle time of the first sample after the gap
+    recv_s: float
+    boot: int
+    kind: str  # "imu", "baro", "gnss", "range", ...
+    length_s: float
+
+
+@dataclass(frozen=True, slots=True)
+class LinkLost:
+    """No message from the vehicle for the configured timeout (receive clock)."""
+
+    recv_s: float
+    silent_s: float
+
+
+@dataclass(frozen=True, slots=True)
+class LinkRecovered:
+    recv_s: float
+    outage_s: float
+
+
+@dataclass(frozen=True, slots=True)
+class Rejected:
+    """A message or sample that was refused, with why. Never fed to filters."""
+
+    recv_s: float
+    kind: str  # counter key, e.g. "crc", "nan", "out_of_range", "duplicate"
+    detail: str
+    t_us: Optional[int] = None
+    boot: Optional[int] = None
+
+
+Measurement = Union[SpecificForceUp, BaroHeight, GnssHeight, RangeHeight, AutopilotHeight]
+Event = Union[ReferenceSet, Reboot, Gap, LinkLost, LinkRecovered, Rejected]
+Sample = Union[Measurement, Event]
