@@ -31,3 +31,4 @@ def main() -> None:
 
 # Each command module registers itself on import.
 
+from . import covariance  # noqa: E402,F401
