@@ -1,0 +1,511 @@
+"""Scenario schema for the simulator: typed, frozen, unknown keys refused by name.
+
+A scenario names a trajectory, an autopilot profile (which messages, at what
+rates), the true sensor errors and a list of faults. Sensor noise parameters
+use the same names as the filter's :class:`mavnav.config.SensorsConfig`
+(``ins.sigma_a_mps2``, ``ins.alpha_a_per_s``, ``baro.sigma_bb_m``,
+``baro.gamma_bb_per_s``, ``gnss.sigma_z_m``, ``rangefinder.sigma_m``), so a
+scenario's sensor block reads like the filter's; the true biases and the
+extra realism (GNSS correlated error, rangefinder limits...) are added here.
+
+Times are *scenario time*: seconds of the first boot's vehicle clock
+(``time_boot_ms``), which continues as if no reboot happened. With the default
+``boot_time_at_start_s: 0`` scenario time is also simulation time.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Dict, List, Literal, Optional, Tuple, Union
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from ..errors import ConfigError
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=False)
+
+
+# ---------------------------------------------------------------- trajectory
+
+
+class AttitudeMotion(_Section):
+    """Roll/pitch/yaw excursions (sinusoids) so the IMU must be rotated.
+
+    Roll and pitch fade to level on the ground (below 1 m); yaw does not.
+    """
+
+    roll_amplitude_deg: float = Field(6.0, ge=0, le=60)
+    roll_period_s: float = Field(7.0, gt=0)
+    pitch_amplitude_deg: float = Field(5.0, ge=0, le=60)
+    pitch_period_s: float = Field(11.0, gt=0)
+    pitch_offset_deg: float = Field(-3.0, ge=-45, le=45)
+    yaw_amplitude_deg: float = Field(10.0, ge=0, le=180)
+    yaw_period_s: float = Field(40.0, gt=0)
+
+
+class LandingTrajectory(_Section):
+    """Hover at ``start_height_m``, then a glide slope to a touchdown at home."""
+
+    kind: Literal["landing"]
+    start_height_m: float = Field(40.0, gt=0)
+    hold_s: float = Field(5.0, ge=0)
+    glide_slope_deg: float = Field(8.0, gt=0, lt=90)
+    descent_speed_mps: float = Field(1.5, gt=0)  # vertical speed on the slope
+    blend_s: float = Field(2.0, gt=0)  # smoothing of the start of the descent
+    flare_s: float = Field(4.0, gt=0)  # smoothing of the touchdown
+    heading_deg: float = 35.0
+    attitude: AttitudeMotion = AttitudeMotion()
+
+
+class HoverTrajectory(_Section):
+    """Optional take-off from home, then hover with a slow height wander."""
+
+    kind: Literal["hover"]
+    height_m: float = Field(15.0, gt=0)
+    takeoff: bool = True  # start on the ground; otherwise start in the hover
+    ground_s: float = Field(3.0, ge=0)  # on the ground before the take-off
+    climb_speed_mps: float = Field(2.0, gt=0)
+    blend_s: float = Field(1.5, gt=0)
+    wander_m: float = Field(0.3, ge=0)  # amplitude of a slow height oscillation
+    wander_period_s: float = Field(20.0, gt=0)
+    horizontal_wander_m: float = Field(2.0, ge=0)
+    heading_deg: float = 35.0
+    attitude: AttitudeMotion = AttitudeMotion()
+
+
+class StepsTrajectory(_Section):
+    """From ``start_height_m``, climb or descend to each height in turn and hold."""
+
+    kind: Literal["steps"]
+    start_height_m: float = Field(0.0, ge=0)
+    heights_m: Tuple[float, ...] = Field((10.0, 25.0, 8.0, 0.0), min_length=1)
+    hold_s: float = Field(10.0, ge=0)
+    vertical_speed_mps: float = Field(2.0, gt=0)
+    blend_s: float = Field(1.5, gt=0)
+    horizontal_wander_m: float = Field(2.0, ge=0)
+    heading_deg: float = 35.0
+    attitude: AttitudeMotion = AttitudeMotion()
+
+    @model_validator(mode="after")
+    def _heights_not_negative(self) -> "StepsTrajectory":
+        if any(h < 0 for h in self.heights_m):
+            raise ValueError("heights_m must be >= 0 (ground is at the reference)")
+        return self
+
+
+Trajectory = Annotated[
+    Union[LandingTrajectory, HoverTrajectory, StepsTrajectory], Field(discriminator="kind")
+]
+TRAJECTORY_KINDS = ("landing", "hover", "steps")
+
+
+# ---------------------------------------------------------------- sensors
+
+
+class SimInsConfig(_Section):
+    """Strapdown IMU: MODEL.md eq. 1-2 on the vertical, noise on every axis.
+
+    Per IMU message sample the noise is white with standard deviation
+    ``sigma_a_mps2 * sqrt(2 / (alpha_a_per_s * T))``, ``T`` the message's
+    nominal interval (the dimensionally consistent form of MODEL.md's erratum).
+    """
+
+    sigma_a_mps2: float = Field(0.02, ge=0)
+    alpha_a_per_s: float = Field(1.0, gt=0)
+    bias_up_mps2: float = 0.0  # da: constant bias of the vertical specific force
+    body_bias_mps2: Tuple[float, float, float] = (0.0, 0.0, 0.0)  # extra FRD bias
+    gyro_sigma_radps: float = Field(0.003, ge=0)
+    gravity_mps2: float = Field(9.80665, gt=0)
+
+
+class SimBaroConfig(_Section):
+    """Barometer: ``H_baro = H + dH + u``, ``u`` first-order Gauss-Markov."""
+
+    sigma_bb_m: float = Field(0.5, ge=0)
+    gamma_bb_per_s: float = Field(1.0, gt=0)
+    bias_m: float = 0.0  # dH
+    temperature_c: float = 25.0
+
+
+class SimGnssConfig(_Section):
+    """GNSS altitude: white ``sigma_z_m`` plus a slow Gauss-Markov error."""
+
+    sigma_z_m: float = Field(0.8, ge=0)
+    correlated_sigma_m: float = Field(1.0, ge=0)
+    correlated_tau_s: float = Field(300.0, gt=0)
+    v_acc_m: Optional[float] = Field(None, gt=0)  # reported; default sqrt(white^2 + correlated^2)
+    geoid_separation_m: float = 47.0  # alt_ellipsoid - alt
+    fix_type: int = Field(3, ge=2, le=8)
+    satellites: int = Field(14, ge=0, le=255)
+    time_base: Literal["boot", "unix"] = "boot"  # GPS_RAW_INT.time_usec
+
+
+class SimRangefinderConfig(_Section):
+    """Downward rangefinder over flat ground at the reference elevation."""
+
+    sigma_m: float = Field(0.05, ge=0)
+    min_m: float = Field(0.2, ge=0)
+    max_m: float = Field(40.0, gt=0)
+    quality: int = Field(100, ge=0, le=100)  # DISTANCE_SENSOR.signal_quality when in range
+
+    @model_validator(mode="after")
+    def _range(self) -> "SimRangefinderConfig":
+        if self.max_m <= self.min_m:
+            raise ValueError("max_m must exceed min_m")
+        return self
+
+
+class SimAttitudeConfig(_Section):
+    sigma_rad: float = Field(0.002, ge=0)  # white error of the reported attitude
+
+
+class SimEstimateConfig(_Section):
+    """The autopilot's own height estimate (GLOBAL_POSITION_INT, LOCAL_POSITION_NED)."""
+
+    sigma_m: float = Field(0.15, ge=0)
+    tau_s: float = Field(5.0, gt=0)
+
+
+class SimSensorsConfig(_Section):
+    ins: SimInsConfig = SimInsConfig()
+    baro: SimBaroConfig = SimBaroConfig()
+    gnss: SimGnssConfig = SimGnssConfig()
+    rangefinder: SimRangefinderConfig = SimRangefinderConfig()
+    attitude: SimAttitudeConfig = SimAttitudeConfig()
+    estimate: SimEstimateConfig = SimEstimateConfig()
+
+
+# ---------------------------------------------------------------- profile
+
+
+MESSAGE_TYPES = (
+    "HEARTBEAT",
+    "SYSTEM_TIME",
+    "HOME_POSITION",
+    "HIGHRES_IMU",
+    "RAW_IMU",
+    "SCALED_IMU",
+    "SCALED_IMU2",
+    "ATTITUDE",
+    "ATTITUDE_QUATERNION",
+    "SCALED_PRESSURE",
+    "GPS_RAW_INT",
+    "DISTANCE_SENSOR",
+    "RANGEFINDER",
+    "GLOBAL_POSITION_INT",
+    "LOCAL_POSITION_NED",
+)
+
+PROFILE_RATES_HZ: Dict[str, Dict[str, float]] = {
+    # PX4 in ONBOARD mode: HIGHRES_IMU fast, everything else at telemetry rates.
+    "px4": {
+        "HEARTBEAT": 1.0,
+        "SYSTEM_TIME": 1.0,
+        "HOME_POSITION": 0.5,
+        "HIGHRES_IMU": 100.0,
+        "ATTITUDE": 50.0,
+        "SCALED_PRESSURE": 25.0,
+        "GPS_RAW_INT": 10.0,
+        "DISTANCE_SENSOR": 20.0,
+        "GLOBAL_POSITION_INT": 10.0,
+        "LOCAL_POSITION_NED": 10.0,
+    },
+    # ArduPilot stream groups RAW_SENS, EXT_STAT, POSITION, EXTRA1, EXTRA3.
+    "ardupilot": {
+        "HEARTBEAT": 1.0,
+        "SYSTEM_TIME": 1.0,
+        "HOME_POSITION": 0.2,
+        "RAW_IMU": 10.0,
+        "SCALED_IMU2": 10.0,
+        "ATTITUDE": 10.0,
+        "SCALED_PRESSURE": 10.0,
+        "GPS_RAW_INT": 5.0,
+        "DISTANCE_SENSOR": 10.0,
+        "RANGEFINDER": 10.0,
+        "GLOBAL_POSITION_INT": 10.0,
+        "LOCAL_POSITION_NED": 10.0,
+    },
+}
+
+_RateField = Optional[Annotated[float, Field(ge=0, le=1000)]]
+
+
+class Rates(_Section):
+    """Message rates in Hz; unset: the profile's default; 0: not sent."""
+
+    HEARTBEAT: _RateField = None
+    SYSTEM_TIME: _RateField = None
+    HOME_POSITION: _RateField = None
+    HIGHRES_IMU: _RateField = None
+    RAW_IMU: _RateField = None
+    SCALED_IMU: _RateField = None
+    SCALED_IMU2: _RateField = None
+    ATTITUDE: _RateField = None
+    ATTITUDE_QUATERNION: _RateField = None
+    SCALED_PRESSURE: _RateField = None
+    GPS_RAW_INT: _RateField = None
+    DISTANCE_SENSOR: _RateField = None
+    RANGEFINDER: _RateField = None
+    GLOBAL_POSITION_INT: _RateField = None
+    LOCAL_POSITION_NED: _RateField = None
+
+
+class Home(_Section):
+    alt_msl_m: float = Field(488.0, ge=-400, le=8000)  # reference elevation h_ref
+    lat_deg: float = Field(47.397742, ge=-89, le=89)
+    lon_deg: float = Field(8.545594, ge=-180, le=180)
+
+
+class Link(_Section):
+    """Vehicle -> ground station: receive time = vehicle time + start + latency."""
+
+    start_unix_s: float = Field(1717236000.0, gt=946684800)  # 2024-06-01T10:00:00Z
+    latency_s: float = Field(0.008, ge=0, le=5)
+    latency_jitter_s: float = Field(0.004, ge=0, le=5)  # mean of an exponential extra delay
+    sample_jitter: float = Field(0.02, ge=0, lt=0.5)  # +-fraction of a message interval
+    sysid: int = Field(1, ge=1, le=255)
+    compid: int = Field(1, ge=0, le=255)
+
+
+# ---------------------------------------------------------------- faults
+
+
+FaultKind = Literal[
+    "gnss_step",
+    "gnss_ramp",
+    "gnss_dropout",
+    "gnss_noise",
+    "rng_dropout",
+    "rng_stuck",
+    "rng_spikes",
+    "rng_out_of_range",
+    "baro_step",
+    "baro_ramp",
+    "baro_freeze",
+    "accel_bias_step",
+    "rate_drop",
+    "link_loss",
+    "reboot",
+]
+
+FAULT_SOURCE: Dict[str, str] = {
+    "gnss_step": "gnss",
+    "gnss_ramp": "gnss",
+    "gnss_dropout": "gnss",
+    "gnss_noise": "gnss",
+    "rng_dropout": "rangefinder",
+    "rng_stuck": "rangefinder",
+    "rng_spikes": "rangefinder",
+    "rng_out_of_range": "rangefinder",
+    "baro_step": "baro_ins",
+    "baro_ramp": "baro_ins",
+    "baro_freeze": "baro_ins",
+    "accel_bias_step": "baro_ins",
+    "rate_drop": "input",
+    "link_loss": "input",
+    "reboot": "input",
+}
+
+# What ``magnitude`` means for each kind (None: not used).
+FAULT_MAGNITUDE: Dict[str, Optional[str]] = {
+    "gnss_step": "m added to the GNSS altitude",
+    "gnss_ramp": "m/s: the GNSS altitude error grows at this rate, then snaps back at the end",
+    "gnss_dropout": None,
+    "gnss_noise": "m: standard deviation of extra white noise on the GNSS altitude",
+    "rng_dropout": None,
+    "rng_stuck": "optional m: the stuck reading (default: the last reading before onset)",
+    "rng_spikes": "m added to a random fraction `probability` (default 0.3) of readings",
+    "rng_out_of_range": "optional m beyond max_distance that the readings report (default 1)",
+    "baro_step": "m added to the barometric height (pressure lowered to match)",
+    "baro_ramp": "m/s: the barometric height error grows at this rate, then snaps back",
+    "baro_freeze": None,
+    "accel_bias_step": "m/s^2 added to the vertical specific force",
+    "rate_drop": "fraction of messages still sent, 0 < m < 1",
+    "link_loss": None,
+    "reboot": None,
+}
+_NEEDS_MAGNITUDE = {k for k, v in FAULT_MAGNITUDE.items() if v and not v.startswith("optional")}
+_MODES = {"gnss_dropout": ("nofix", "silent"), "rng_dropout": ("invalid", "silent")}
+
+
+class Fault(_Section):
+    """One fault: from ``onset_s`` (vehicle time) for ``duration_s`` (None: to the end)."""
+
+    kind: FaultKind
+    onset_s: float = Field(ge=0)
+    duration_s: Optional[float] = Field(None, gt=0)
+    magnitude: Optional[float] = None
+    probability: Optional[float] = Field(None, gt=0, le=1)  # rng_spikes only
+    mode: Optional[Literal["nofix", "silent", "invalid"]] = None  # dropouts only
+    messages: Optional[Tuple[str, ...]] = None  # restrict to these message types
+    seed: int = 0  # random draws of noise bursts and spikes (inject; simulate uses the scenario seed)
+    boot: Optional[int] = Field(None, ge=0)  # inject: the boot (0 = first) in which onset counts
+
+    @model_validator(mode="after")
+    def _per_kind(self) -> "Fault":
+        k = self.kind
+        if k in _NEEDS_MAGNITUDE and self.magnitude is None:
+            raise ValueError(f"{k} needs a magnitude ({FAULT_MAGNITUDE[k]})")
+        if FAULT_MAGNITUDE[k] is None and self.magnitude is not None:
+            raise ValueError(f"{k} takes no magnitude")
+        if k == "rate_drop" and not (0.0 < self.magnitude < 1.0):  # type: ignore[operator]
+            raise ValueError("rate_drop magnitude is the fraction kept, 0 < m < 1")
+        if k == "gnss_noise" and self.magnitude <= 0:  # type: ignore[operator]
+            raise ValueError("gnss_noise magnitude is a standard deviation, > 0")
+        if k in ("rng_out_of_range",) and self.magnitude is not None and self.magnitude <= 0:
+            raise ValueError("rng_out_of_range magnitude must be > 0")
+        if self.probability is not None and k != "rng_spikes":
+            raise ValueError(f"{k} takes no probability (only rng_spikes)")
+        if self.mode is not None and self.mode not in _MODES.get(k, ()):
+            allowed = _MODES.get(k)
+            raise ValueError(
+                f"{k} takes no mode" if not allowed else f"{k} mode must be one of {', '.join(allowed)}"
+            )
+        if k in ("link_loss", "reboot") and self.duration_s is None:
+            raise ValueError(f"{k} needs a duration_s")
+        return self
+
+    @property
+    def source(self) -> str:
+        return FAULT_SOURCE[self.kind]
+
+    @property
+    def end_s(self) -> float:
+        return float("inf") if self.duration_s is None else self.onset_s + self.duration_s
+
+    @property
+    def effective_mode(self) -> Optional[str]:
+        if self.mode is not None:
+            return self.mode
+        return _MODES[self.kind][0] if self.kind in _MODES else None
+
+    @property
+    def effective_probability(self) -> float:
+        return 0.3 if self.probability is None else self.probability
+
+
+# ---------------------------------------------------------------- scenario
+
+
+class Scenario(_Section):
+    name: str = "scenario"
+    description: str = ""
+    duration_s: float = Field(gt=0, le=3600)
+    seed: int = Field(1, ge=0)
+    profile: Literal["px4", "ardupilot"] = "px4"
+    boot_time_at_start_s: float = Field(0.0, ge=0, le=1e6)
+    home: Home = Home()
+    link: Link = Link()
+    rates_hz: Rates = Rates()
+    trajectory: Trajectory
+    sensors: SimSensorsConfig = SimSensorsConfig()
+    faults: Tuple[Fault, ...] = ()
+    truth_rate_hz: float = Field(10.0, gt=0, le=1000)
+
+    @model_validator(mode="after")
+    def _checks(self) -> "Scenario":
+        for i, f in enumerate(self.faults):
+            if f.messages is not None and f.kind != "rate_drop":
+                raise ValueError(f"faults[{i}].messages: in a scenario only rate_drop takes messages")
+            if f.messages is not None:
+                bad = [m for m in f.messages if m not in MESSAGE_TYPES]
+                if bad:
+                    raise ValueError(f"faults[{i}].messages: unknown message type '{bad[0]}'")
+            if f.boot is not None:
+                raise ValueError(f"faults[{i}].boot: only for inject")
+            if f.onset_s < self.boot_time_at_start_s:
+                raise ValueError(f"faults[{i}].onset_s is before the scenario starts")
+        rates = self.rates()
+        if not any(rates[m] > 0 for m in ("HIGHRES_IMU", "RAW_IMU", "SCALED_IMU", "SCALED_IMU2")):
+            raise ValueError("rates_hz: no IMU message is sent")
+        return self
+
+    def rates(self) -> Dict[str, float]:
+        """Every message type's rate in Hz (0: not sent), profile defaults filled in."""
+        base = PROFILE_RATES_HZ[self.profile]
+        given = self.rates_hz.model_dump()
+        return {m: float(given[m]) if given[m] is not None else base.get(m, 0.0) for m in MESSAGE_TYPES}
+
+
+# ---------------------------------------------------------------- loading
+
+
+def _loc(parts) -> str:
+    out = ""
+    prev = None
+    for p in parts:
+        if p == "__root__":
+            continue
+        if prev == "trajectory" and p in TRAJECTORY_KINDS:
+            prev = p
+            continue  # the discriminator's tag, not a key the user wrote
+        if isinstance(p, int):
+            out += f"[{p}]"
+        else:
+            out += ("." if out else "") + str(p)
+        prev = p
+    return out
+
+
+def _describe(err: dict) -> str:
+    loc = _loc(err.get("loc", ()))
+    kind = err.get("type", "")
+    if kind == "extra_forbidden":
+        return f"unknown key '{loc}'"
+    if kind == "missing":
+        return f"missing key '{loc}'"
+    msg = str(err.get("msg", "invalid"))
+    if msg.startswith("Value error, "):
+        msg = msg[len("Value error, ") :]
+    return f"{loc or 'top level'}: {msg}"
+
+
+def scenario_from_dict(data: object, origin: str = "<dict>") -> Scenario:
+    """Validate a plain mapping into a :class:`Scenario` (one-line ConfigError)."""
+    if not isinstance(data, dict):
+        raise ConfigError(f"{origin}: top level must be a mapping, not {type(data).__name__}")
+    try:
+        return Scenario.model_validate(data)
+    except ValidationError as exc:
+        errors = exc.errors()
+        more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
+        raise ConfigError(f"{origin}: {_describe(errors[0])}{more}") from None
+
+
+def load_scenario(path: Union[str, Path]) -> Scenario:
+    """Load a scenario YAML file (one-line ConfigError on any failure)."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"{p}: no such scenario file") from None
+    except OSError as exc:
+        raise ConfigError(f"{p}: cannot read ({exc.strerror})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        raise ConfigError(f"{p}: not valid YAML{where}") from None
+    return scenario_from_dict(data, origin=str(p))
+
+
+def fault_errors_one_line(exc: ValidationError, origin: str) -> ConfigError:
+    errors = exc.errors()
+    more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
+    return ConfigError(f"{origin}: {_describe(errors[0])}{more}")
+
+
+__all__: List[str] = [
+    "Scenario",
+    "Fault",
+    "FAULT_SOURCE",
+    "FAULT_MAGNITUDE",
+    "MESSAGE_TYPES",
+    "PROFILE_RATES_HZ",
+    "load_scenario",
+    "scenario_from_dict",
+]
