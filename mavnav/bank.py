@@ -1,0 +1,285 @@
+"""The three channels stepped together: mavnav's production filter.
+
+Same filter as :func:`mavnav.channel.step` (MODEL.md eq. 16-17; that module
+is the readable reference), unrolled for the structure of the model and
+compiled with numba:
+
+* ``Phi`` is sparse (``1, T, -T^2/2, -T``) and applied in closed form;
+* ``Bxx = g g^T + diag(0, 0, q_dH, q_da)``, ``g = -q_a [T^2/2, T, 0, 0]``, so
+  ``Bxy`` and ``Byy`` reduce to scalar products;
+* at most two rows per channel (baro and its own aux sensor), so ``S`` is
+  inverted in closed form.
+
+The covariance uses the symmetric short form ``P+ = Pp - C S^-1 C^T`` (upper
+triangle computed and mirrored), equal to the Joseph form of
+:mod:`mavnav.kalman` at the optimal gain; ``tests/test_bank.py`` pins the two
+together and checks positive definiteness over long irregular runs.
+
+Channel order is :data:`mavnav.channel.CHANNELS`: 0 = gnss, 1 = rangefinder,
+2 = baro. Pure: no clock, no I/O; all state is in the arrays.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from .channel import CHANNELS, N_STATES, ChannelState, EpochInputs, Model, _check_finite, fix_height, initial_state
+
+try:  # numba is a dependency; the kernel also runs (slowly) as plain Python.
+    from numba import njit
+except ImportError:  # pragma: no cover
+    def njit(*args, **kwargs):
+        if args and callable(args[0]):
+            return args[0]
+        return lambda f: f
+
+N_CH = len(CHANNELS)
+GNSS, RNG, BARO = 0, 1, 2
+ROW_BARO, ROW_AUX = 0, 1
+
+
+@njit(cache=True, fastmath=False)
+def bank_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da,
+                has_baro, xi_new, phi_u, gamma_u2,
+                aux_on, aux_z, aux_var, aux_age,
+                inn, sdiag, s12_out, nis_out, dof_out):  # pragma: no cover - compiled
+    """Advance every channel by one epoch, in place.
+
+    Per channel ``c``: rows are the baro row (when ``has_baro`` and
+    ``baro_prev[c]`` is finite) and the aux row (when ``aux_on[c]``).
+    Outputs: ``inn[c] = (baro, aux)`` innovations, ``sdiag[c]`` their
+    variances (NaN when unused), ``s12_out[c]`` their covariance,
+    ``nis_out[c]`` = r^T S^-1 r and ``dof_out[c]`` the number of rows.
+    """
+    hT2 = 0.5 * T * T
+    for c in range(x.shape[0]):
+        p00 = P[c, 0, 0]; p01 = P[c, 0, 1]; p02 = P[c, 0, 2]; p03 = P[c, 0, 3]
+        p11 = P[c, 1, 1]; p12 = P[c, 1, 2]; p13 = P[c, 1, 3]
+        p22 = P[c, 2, 2]; p23 = P[c, 2, 3]
+        p33 = P[c, 3, 3]
+        x0 = x[c, 0]; x1 = x[c, 1]; x2 = x[c, 2]; x3 = x[c, 3]
+        # prediction: Phi x + psi_w, Pp = Phi P Phi^T + Bxx
+        xp0 = x0 + T * x1 - hT2 * x3 + dp
+        xp1 = x1 - T * x3 + dv
+        a00 = p00 + T * p01 - hT2 * p03
+        a01 = p01 + T * p11 - hT2 * p13
+        a02 = p02 + T * p12 - hT2 * p23
+        a03 = p03 + T * p13 - hT2 * p33
+        a11 = p11 - T * p13
+        a12 = p12 - T * p23
+        a13 = p13 - T * p33
+        q00 = a00 + T * a01 - hT2 * a03 + g0 * g0
+        q01 = a01 - T * a03 + g0 * g1
+        q02 = a02
+        q03 = a03
+        q11 = a11 - T * a13 + g1 * g1
+        q12 = a12
+        q13 = a13
+        q22 = p22 + q_dh
+        q23 = p23
+        q33 = p33 + q_da
+        # rows
+        use_b = has_baro and not math.isnan(baro_prev[c])
+        use_a = aux_on[c]
+        inn[c, 0] = math.nan; inn[c, 1] = math.nan
+        sdiag[c, 0] = math.nan; sdiag[c, 1] = math.nan
+        s12_out[c] = 0.0
+        nr = 0
+        # slot 1 / slot 2 row descriptors
+        f10 = f11 = f12 = f13 = gh1 = y1 = n1 = 0.0
+        f20 = f21 = f22 = f23 = gh2 = y2 = n2 = 0.0
+        b1 = False
+        if use_b:
+            am = 1.0 - phi_u
+            f10 = am; f11 = T; f12 = am; f13 = -hT2
+            gh1 = g0; b1 = True
+            y1 = xi_new - phi_u * baro_prev[c] - dp
+            n1 = gamma_u2
+            nr = 1
+        if use_a:
+            age = aux_age[c]
+            fa0 = 1.0; fa1 = T - age; fa2 = 0.0; fa3 = -hT2 + age * T
+            gha = g0 - age * g1
+            ya = aux_z[c] - (dp - age * dv)
+            na = aux_var[c]
+            if nr == 0:
+                f10 = fa0; f11 = fa1; f12 = fa2; f13 = fa3; gh1 = gha; y1 = ya; n1 = na
+                nr = 1
+            else:
+                f20 = fa0; f21 = fa1; f22 = fa2; f23 = fa3; gh2 = gha; y2 = ya; n2 = na
+                nr = 2
+        dof_out[c] = nr
+        if has_baro:
+            baro_prev[c] = xi_new
+        else:
+            baro_prev[c] = math.nan
+        if nr == 0:
+            n00 = q00; n01 = q01; n02 = q02; n03 = q03; n11 = q11; n12 = q12; n13 = q13
+            n22 = q22; n23 = q23; n33 = q33
+            x[c, 0] = xp0; x[c, 1] = xp1
+            nis_out[c] = 0.0
+        else:
+            # row 1: u = P f^T, C = Phi u + Bxy, innovation, S11
+            u0 = p00 * f10 + p01 * f11 + p02 * f12 + p03 * f13
+            u1 = p01 * f10 + p11 * f11 + p12 * f12 + p13 * f13
+            u2 = p02 * f10 + p12 * f11 + p22 * f12 + p23 * f13
+            u3 = p03 * f10 + p13 * f11 + p23 * f12 + p33 * f13
+            c10 = u0 + T * u1 - hT2 * u3 + g0 * gh1
+            c11 = u1 - T * u3 + g1 * gh1
+            c12 = u2 + (q_dh if b1 else 0.0)
+            c13 = u3
+            i1 = y1 - (f10 * x0 + f11 * x1 + f12 * x2 + f13 * x3)
+            s11 = f10 * u0 + f11 * u1 + f12 * u2 + f13 * u3 + gh1 * gh1 + n1 + (q_dh if b1 else 0.0)
+            if nr == 1:
+                k0 = c10 / s11; k1 = c11 / s11; k2 = c12 / s11; k3 = c13 / s11
+                x[c, 0] = xp0 + k0 * i1; x[c, 1] = xp1 + k1 * i1
+                x[c, 2] = x2 + k2 * i1; x[c, 3] = x3 + k3 * i1
+                n00 = q00 - k0 * c10; n01 = q01 - k0 * c11; n02 = q02 - k0 * c12; n03 = q03 - k0 * c13
+                n11 = q11 - k1 * c11; n12 = q12 - k1 * c12; n13 = q13 - k1 * c13
+                n22 = q22 - k2 * c12; n23 = q23 - k2 * c13
+                n33 = q33 - k3 * c13
+                nis_out[c] = i1 * i1 / s11
+                slot = 0 if b1 else 1
+                inn[c, slot] = i1
+                sdiag[c, slot] = s11
+            else:
+                v0 = p00 * f20 + p01 * f21 + p02 * f22 + p03 * f23
+                v1 = p01 * f20 + p11 * f21 + p12 * f22 + p13 * f23
+                v2 = p02 * f20 + p12 * f21 + p22 * f22 + p23 * f23
+                v3 = p03 * f20 + p13 * f21 + p23 * f22 + p33 * f23
+                c20 = v0 + T * v1 - hT2 * v3 + g0 * gh2
+                c21 = v1 - T * v3 + g1 * gh2
+                c22 = v2
+                c23 = v3
+                i2 = y2 - (f20 * x0 + f21 * x1 + f22 * x2 + f23 * x3)
+                s22 = f20 * v0 + f21 * v1 + f22 * v2 + f23 * v3 + gh2 * gh2 + n2
+                s12 = f10 * v0 + f11 * v1 + f12 * v2 + f13 * v3 + gh1 * gh2
+                det = s11 * s22 - s12 * s12
+                w11 = s22 / det; w12 = -s12 / det; w22 = s11 / det
+                ka0 = c10 * w11 + c20 * w12; kb0 = c10 * w12 + c20 * w22
+                ka1 = c11 * w11 + c21 * w12; kb1 = c11 * w12 + c21 * w22
+                ka2 = c12 * w11 + c22 * w12; kb2 = c12 * w12 + c22 * w22
+                ka3 = c13 * w11 + c23 * w12; kb3 = c13 * w12 + c23 * w22
+                x[c, 0] = xp0 + ka0 * i1 + kb0 * i2
+                x[c, 1] = xp1 + ka1 * i1 + kb1 * i2
+                x[c, 2] = x2 + ka2 * i1 + kb2 * i2
+                x[c, 3] = x3 + ka3 * i1 + kb3 * i2
+                n00 = q00 - ka0 * c10 - kb0 * c20
+                n01 = q01 - ka0 * c11 - kb0 * c21
+                n02 = q02 - ka0 * c12 - kb0 * c22
+                n03 = q03 - ka0 * c13 - kb0 * c23
+                n11 = q11 - ka1 * c11 - kb1 * c21
+                n12 = q12 - ka1 * c12 - kb1 * c22
+                n13 = q13 - ka1 * c13 - kb1 * c23
+                n22 = q22 - ka2 * c12 - kb2 * c22
+                n23 = q23 - ka2 * c13 - kb2 * c23
+                n33 = q33 - ka3 * c13 - kb3 * c23
+                nis_out[c] = i1 * (w11 * i1 + w12 * i2) + i2 * (w12 * i1 + w22 * i2)
+                inn[c, 0] = i1; sdiag[c, 0] = s11
+                inn[c, 1] = i2; sdiag[c, 1] = s22
+                s12_out[c] = s12
+        if nr == 0:
+            x[c, 2] = x2; x[c, 3] = x3
+        P[c, 0, 0] = n00; P[c, 0, 1] = n01; P[c, 0, 2] = n02; P[c, 0, 3] = n03
+        P[c, 1, 0] = n01; P[c, 1, 1] = n11; P[c, 1, 2] = n12; P[c, 1, 3] = n13
+        P[c, 2, 0] = n02; P[c, 2, 1] = n12; P[c, 2, 2] = n22; P[c, 2, 3] = n23
+        P[c, 3, 0] = n03; P[c, 3, 1] = n13; P[c, 3, 2] = n23; P[c, 3, 3] = n33
+
+
+@dataclass(frozen=True, slots=True)
+class BankStep:
+    """What one epoch produced, per channel (index = CHANNELS order)."""
+
+    t_us: int
+    innovation: np.ndarray  # (3, 2): baro row, aux row; NaN where unused
+    innovation_var: np.ndarray  # (3, 2)
+    innovation_cov: np.ndarray  # (3,): cov(baro, aux) rows
+    nis: np.ndarray  # (3,)
+    dof: np.ndarray  # (3,) int
+
+
+class ChannelBank:
+    """The three channel filters and their shared epoch bookkeeping."""
+
+    def __init__(self, model: Model):
+        self.model = model
+        self._printed = model.accel_noise_form == "printed"
+        self.x = np.zeros((N_CH, N_STATES))
+        self.P = np.zeros((N_CH, N_STATES, N_STATES))
+        self.baro_prev = np.full(N_CH, math.nan)
+        self.t_us: Optional[int] = None
+        self._inn = np.zeros((N_CH, 2))
+        self._sdiag = np.zeros((N_CH, 2))
+        self._s12 = np.zeros(N_CH)
+        self._nis = np.zeros(N_CH)
+        self._dof = np.zeros(N_CH, dtype=np.int64)
+        self._aux_on = np.zeros(N_CH, dtype=np.bool_)
+        self._aux_z = np.zeros(N_CH)
+        self._aux_var = np.ones(N_CH)
+        self._aux_age = np.zeros(N_CH)
+
+    @property
+    def started(self) -> bool:
+        return self.t_us is not None
+
+    def start(self, t_us: int, baro_m: float) -> None:
+        for c in range(N_CH):
+            self.reinit(c, t_us, baro_m)
+        self.t_us = t_us
+
+    def reinit(self, c: int, t_us: int, baro_m: Optional[float]) -> None:
+        """(Re)initialise channel ``c`` from the prior, conditioned on a baro sample."""
+        st = initial_state(self.model, t_us, baro_m)
+        self.x[c] = st.x
+        self.P[c] = st.P
+        self.baro_prev[c] = math.nan if baro_m is None else baro_m
+
+    def channel_state(self, c: int) -> ChannelState:
+        prev = self.baro_prev[c]
+        return ChannelState(x=self.x[c].copy(), P=self.P[c].copy(), t_us=self.t_us or 0,
+                            baro_prev_m=None if math.isnan(prev) else float(prev))
+
+    def set_channel(self, c: int, x: np.ndarray, P: np.ndarray) -> None:
+        self.x[c] = x
+        self.P[c] = 0.5 * (P + P.T)
+
+    def step(self, ep: EpochInputs) -> BankStep:
+        _check_finite(ep)
+        m = self.model
+        T = ep.dt_s
+        if self._printed:
+            q = m.sigma_a_mps2 * math.sqrt(2.0 * T / m.alpha_a_per_s)
+        else:
+            q = m.sigma_a_mps2 * math.sqrt(2.0 / (m.alpha_a_per_s * T))
+        g0, g1 = -0.5 * T * T * q, -T * q
+        q_dh = m.baro_bias_rw_m_per_sqrt_s**2 * T
+        q_da = m.acc_bias_rw_mps2_per_sqrt_s**2 * T
+        has_baro = ep.baro_m is not None
+        phi_u = math.exp(-m.gamma_bb_per_s * T)
+        gamma_u2 = m.sigma_bb_m**2 * (1.0 - phi_u * phi_u)
+        if has_baro and ep.baro_restart:
+            self.baro_prev[:] = math.nan
+        aux_on = self._aux_on
+        for c, a in ((GNSS, ep.gnss), (RNG, ep.rng)):
+            if a is None:
+                aux_on[c] = False
+            else:
+                aux_on[c] = True
+                self._aux_z[c] = a.height_m
+                self._aux_var[c] = a.sigma_m * a.sigma_m
+                self._aux_age[c] = a.age_s
+        bank_kernel(self.x, self.P, self.baro_prev, T, ep.dp_m, ep.dv_mps, g0, g1, q_dh, q_da,
+                    has_baro, ep.baro_m if has_baro else 0.0, phi_u, gamma_u2,
+                    aux_on, self._aux_z, self._aux_var, self._aux_age,
+                    self._inn, self._sdiag, self._s12, self._nis, self._dof)
+        self.t_us = ep.t_us
+        return BankStep(ep.t_us, self._inn.copy(), self._sdiag.copy(), self._s12.copy(),
+                        self._nis.copy(), self._dof.copy())
+
+    def height_fix(self, c: int, height_m: float, var_m2: float) -> None:
+        """Correct channel ``c`` with an independent measurement of H (feedback)."""
+        self.x[c], self.P[c] = fix_height(self.x[c], self.P[c], height_m, var_m2)
