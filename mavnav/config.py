@@ -97,6 +97,10 @@ class ReferenceConfig(_Section):
     source: Literal["config", "home", "startup"] = "startup"
     value: Optional[float] = None  # Pa for the baro reference, m for the GNSS reference
     startup_window_s: float = Field(2.0, gt=0)
+    # With source "home": how long (vehicle time after the first sample that
+    # needs the reference) to wait for HOME_POSITION before falling back to
+    # the start-up estimate. Bounds the memory held while waiting.
+    home_wait_s: float = Field(30.0, gt=0)
 
     @model_validator(mode="after")
     def _value_with_config(self) -> "ReferenceConfig":
@@ -114,6 +118,28 @@ class IngestConfig(_Section):
     link_timeout_s: float = Field(2.0, gt=0)
     rangefinder_stuck_s: float = Field(2.0, gt=0)  # identical readings for this long while moving = stuck
     imu_source: Literal["auto", "HIGHRES_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3", "RAW_IMU"] = "auto"
+    # Downward rangefinder and autopilot-height sources: one of each, like the IMU.
+    range_source: Literal["auto", "DISTANCE_SENSOR", "RANGEFINDER"] = "auto"
+    autopilot_source: Literal["auto", "GLOBAL_POSITION_INT", "LOCAL_POSITION_NED"] = "auto"
+    # "auto" choices are made this long (vehicle time) after the first candidate.
+    source_select_s: float = Field(1.0, gt=0)
+    # IMU samples wait this long (vehicle time) for a bracketing attitude, then
+    # take the nearest one; with no attitude within attitude_max_age_s they are refused.
+    attitude_wait_s: float = Field(0.1, gt=0)
+    attitude_max_age_s: float = Field(1.0, gt=0)
+    # Limits for RANGEFINDER, which carries none (DISTANCE_SENSOR has its own).
+    rangefinder_min_m: float = Field(0.05, ge=0)
+    rangefinder_max_m: float = Field(100.0, gt=0)
+    rangefinder_max_tilt_deg: float = Field(60.0, gt=0, lt=90)
+    # Stuck = rangefinder_stuck_s of identical readings while the baro height moves this much.
+    rangefinder_stuck_min_move_m: float = Field(1.0, gt=0)
+    # A stream is in a gap when silent longer than max(gap_min_s, gap_factor * its usual interval).
+    gap_min_s: float = Field(0.5, gt=0)
+    gap_factor: float = Field(5.0, gt=1)
+    # Vehicle time jumping back more than this (confirmed by the next message) is a reboot.
+    reboot_jump_s: float = Field(2.0, gt=0)
+    # Messages held (per link) until the first autopilot heartbeat selects the vehicle.
+    preselect_max_frames: int = Field(20000, ge=0)
 
 
 # ---------------------------------------------------------------- monitor

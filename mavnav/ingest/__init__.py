@@ -1,0 +1,17 @@
+"""MAVLink ingestion: live links and recorded tlogs -> mavnav samples.
+
+Data flow: a frame reader (:mod:`.tlog_reader` for files, :mod:`.stream_reader`
+for live bytes) finds and CRC-checks MAVLink frames; one
+:class:`~.normaliser.Normaliser` per link turns the frames it wants into
+:mod:`mavnav.samples` in SI units on the vehicle clock. :class:`TlogSource`
+and :class:`LiveSource` are thin loops around the two; they share every
+rule, so a replayed log and the same log streamed live give the same samples.
+
+Only :mod:`.normaliser` knows MAVLink field names.
+"""
+
+from .live import LiveSource
+from .stats import IngestStats
+from .tlog import TlogSource, expand_tlog_paths
+
+__all__ = ["TlogSource", "LiveSource", "IngestStats", "expand_tlog_paths"]

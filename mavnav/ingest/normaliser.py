@@ -1,0 +1,736 @@
+"""MAVLink messages -> mavnav samples: the only place that knows MAVLink field names.
+
+One :class:`Normaliser` per link (a live connection or one tlog) is fed
+decoded-on-demand frames ``(recv_s, msgid, sysid, compid, payload)`` by a
+frame reader (:mod:`.tlog_reader` or :mod:`.stream_reader`), so live and
+replay share every rule below. Its output list (``out``) holds samples and
+events in arrival order, except that samples held for a reference or a
+bracketing attitude are released when it arrives; within each kind and
+boot ``t_us`` strictly increases.
+
+Decisions the issue left open (see also the module docs of :mod:`.clock`,
+:mod:`.attitude`, :mod:`.references`, :mod:`.streams`):
+
+* **Vehicle.** The first HEARTBEAT with ``autopilot != MAV_AUTOPILOT_INVALID``
+  and ``type != MAV_TYPE_GCS`` selects the system (or the ``sysid`` given).
+  All components of that system are used (a sonar is often its own
+  component), but only the autopilot component's times drive the vehicle
+  clock and reboot detection. Frames that arrive before the heartbeat are
+  held (up to ``preselect_max_frames``) and replayed once it does.
+* **IMU.** ``auto`` ranks HIGHRES_IMU > RAW_IMU > SCALED_IMU > SCALED_IMU2 >
+  SCALED_IMU3; RAW_IMU is only milli-g on ArduPilot, so it is a candidate
+  only when the heartbeat says ArduPilot (for other autopilots it is raw
+  sensor counts). HIGHRES_IMU with ``fields_updated`` set but no
+  accelerometer bit is not a new accelerometer sample and is skipped.
+* **Rangefinder.** ``auto`` prefers DISTANCE_SENSOR (downward, timed) over
+  RANGEFINDER (untimed); ArduPilot often sends both for one sensor, and
+  one sensor must not be counted twice. Tilt correction uses the latest
+  attitude (within ``attitude_max_age_s``); beyond ``rangefinder_max_tilt_deg``
+  the reading is refused (``tilt``). DISTANCE_SENSOR limits come from the
+  message (``max_distance`` 0 means unknown), RANGEFINDER limits from the
+  configuration. *Stuck*: the same raw reading for ``rangefinder_stuck_s``
+  while the barometer moved at least ``rangefinder_stuck_min_move_m``; the
+  run's later readings are refused (``stuck``) until the value changes (the
+  first ``rangefinder_stuck_s`` of a run cannot be told from a steady hover).
+* **Baro reference "home".** HOME_POSITION gives an altitude, not a
+  pressure. Home is where the vehicle was when the autopilot set it (at
+  arming, on the ground), so the reference pressure is the mean static
+  pressure over ``startup_window_s`` up to the first HOME_POSITION (or
+  after it, when no baro sample precedes it), each sample moved to home
+  height with the autopilot's own GLOBAL_POSITION_INT ``relative_alt`` when
+  one arrived within 1 s (so a late HOME_POSITION, sent mid-flight on a
+  ground station's request, still gives the home pressure).
+  ``alt_ref_msl_m`` is then the home altitude.
+* **GNSS reference "home".** HOME_POSITION ``altitude`` (MSL); for the
+  ellipsoid datum it is shifted by the geoid separation seen in
+  GPS_RAW_INT (``alt_ellipsoid - alt``).
+* **Autopilot height.** GLOBAL_POSITION_INT ``alt`` (MSL) minus the GNSS
+  reference in MSL, i.e. above the same point as :class:`GnssHeight`;
+  LOCAL_POSITION_NED ``-z`` plus the EKF origin altitude (GPS_GLOBAL_ORIGIN)
+  minus the same. Held until the GNSS reference is known; with none
+  within the GNSS ``home_wait_s`` (e.g. no fix indoors) the autopilot's own
+  datum is used for the rest of the stream: ``relative_alt`` (above its
+  home) or ``-z`` (above its EKF origin); ``stats.autopilot_reference``
+  says which.
+* **Link.** The link is lost when nothing from the vehicle arrived for
+  ``link_timeout_s`` of receive time: a live source calls :meth:`tick`,
+  a tlog shows it as a receive-time hole (both events then come together).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import Deque, Dict, List, Optional
+
+from ..atmosphere import height_from_pressure_m, pressure_at_height_pa
+from ..config import IngestConfig
+from ..frames import cos_tilt, down_row_from_quat, f_up_from_body, quat_from_euler
+from ..samples import (
+    AutopilotHeight,
+    BaroHeight,
+    Gap,
+    GnssHeight,
+    LinkLost,
+    LinkRecovered,
+    RangeHeight,
+    Reboot,
+    ReferenceSet,
+    Rejected,
+    SpecificForceUp,
+)
+from . import wire
+from .attitude import AttitudeInterpolator
+from .clock import HOLD, StreamClocks, VehicleClock
+from .references import ReferenceResolver
+from .stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
+from .streams import KindGuard, SourceSelector
+
+G0_MPS2 = 9.80665
+MILLI_G_MPS2 = G0_MPS2 / 1000.0
+MAV_AUTOPILOT_ARDUPILOTMEGA = 3
+MAV_AUTOPILOT_INVALID = 8
+MAV_TYPE_GCS = 6
+MAV_COMP_ID_AUTOPILOT1 = 1
+MAV_SENSOR_ROTATION_PITCH_270 = 25  # downward
+DISTANCE_SENSOR_QUALITY_INVALID = 1
+UINT32_MAX = 0xFFFFFFFF
+MAX_SPECIFIC_FORCE_MPS2 = 50 * G0_MPS2  # beyond any airframe IMU range
+MAX_PRESSURE_PA = 2.0e7  # 200 bar: deeper than any ROV depth sensor reads
+REL_ALT_MAX_AGE_US = 1_000_000
+
+IMU_RANKING = ("HIGHRES_IMU", "RAW_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3")
+RANGE_RANKING = ("DISTANCE_SENSOR", "RANGEFINDER")
+AUTOPILOT_RANKING = ("GLOBAL_POSITION_INT", "LOCAL_POSITION_NED")
+
+_ID = wire.MSG_ID
+HEARTBEAT = _ID["HEARTBEAT"]
+PRESSURE_IDS = {1: _ID["SCALED_PRESSURE"], 2: _ID["SCALED_PRESSURE2"], 3: _ID["SCALED_PRESSURE3"]}
+IMU_IDS = {_ID[n]: n for n in IMU_RANKING}
+WANTED = frozenset(
+    [HEARTBEAT, _ID["SYSTEM_TIME"], _ID["ATTITUDE"], _ID["ATTITUDE_QUATERNION"], _ID["GPS_RAW_INT"]]
+    + list(IMU_IDS)
+    + list(PRESSURE_IDS.values())
+    + [_ID["DISTANCE_SENSOR"], _ID["RANGEFINDER"], _ID["HOME_POSITION"]]
+    + [_ID["GLOBAL_POSITION_INT"], _ID["LOCAL_POSITION_NED"], _ID["GPS_GLOBAL_ORIGIN"]]
+)
+
+
+def _finite(*vals) -> bool:
+    for v in vals:
+        if not math.isfinite(v):
+            return False
+    return True
+
+
+class Normaliser:
+    def __init__(self, config: IngestConfig, sysid: Optional[int] = None, stats: Optional[IngestStats] = None):
+        cfg = self.cfg = config
+        self.stats = stats if stats is not None else IngestStats()
+        self.out: List[object] = []
+        self.sysid = sysid
+        self.ap_compid = MAV_COMP_ID_AUTOPILOT1
+        self.autopilot: Optional[int] = None
+        self._preselect: Deque[tuple] = deque()
+        if sysid is not None:
+            self.stats.vehicle = VehicleInfo(sysid=sysid)
+        self.clock = VehicleClock(cfg.reboot_jump_s)
+        self.streams = StreamClocks()
+        self.att = AttitudeInterpolator(cfg.attitude_wait_s, cfg.attitude_max_age_s)
+        self.guard = KindGuard(cfg.gap_min_s, cfg.gap_factor)
+        self.imu_sel = SourceSelector(IMU_RANKING, cfg.imu_source, cfg.source_select_s)
+        self.range_sel = SourceSelector(RANGE_RANKING, cfg.range_source, cfg.source_select_s)
+        self.ap_sel = SourceSelector(AUTOPILOT_RANKING, cfg.autopilot_source, cfg.source_select_s)
+        self.baro_ref = ReferenceResolver(
+            "baro", cfg.baro_reference, _item_t, _mean_pressure, self._baro_home_value
+        )
+        self.gnss_ref = ReferenceResolver(
+            "gnss", cfg.gnss_reference, _item_t, _mean_alt, self._gnss_home_value
+        )
+        self._cand: Optional[tuple] = None
+        self._last_recv: Optional[float] = None
+        self._link_lost = False
+        self._geoid_sep_m: Optional[float] = None
+        self._rel_alt: Optional[tuple] = None  # (t_us, boot, relative_alt_m)
+        self._ekf_origin_msl_m: Optional[float] = None
+        self._ap_held: Deque[tuple] = deque()
+        self._ap_mode: Optional[str] = None
+        self._gnss_wait_us = int(cfg.gnss_reference.home_wait_s * 1e6)
+        self._cos_max_tilt = math.cos(math.radians(cfg.rangefinder_max_tilt_deg))
+        self._stuck_us = int(cfg.rangefinder_stuck_s * 1e6)
+        self._run: Optional[list] = None  # [raw_value, t_start, p_min, p_max, boot]
+        self._last_pressure_pa: Optional[float] = None
+        self._pressure_id = PRESSURE_IDS[cfg.baro_instance]
+        self._decoders = {mid: wire.make_decoder(mid) for mid in WANTED}
+        self._handlers = {
+            HEARTBEAT: self._heartbeat,
+            _ID["SYSTEM_TIME"]: self._system_time,
+            _ID["ATTITUDE"]: self._attitude,
+            _ID["ATTITUDE_QUATERNION"]: self._attitude_quaternion,
+            _ID["HIGHRES_IMU"]: self._highres_imu,
+            _ID["RAW_IMU"]: self._raw_imu,
+            _ID["SCALED_IMU"]: self._scaled_imu_handler("SCALED_IMU"),
+            _ID["SCALED_IMU2"]: self._scaled_imu_handler("SCALED_IMU2"),
+            _ID["SCALED_IMU3"]: self._scaled_imu_handler("SCALED_IMU3"),
+            _ID["GPS_RAW_INT"]: self._gps_raw_int,
+            _ID["DISTANCE_SENSOR"]: self._distance_sensor,
+            _ID["RANGEFINDER"]: self._rangefinder,
+            _ID["HOME_POSITION"]: self._home_position,
+            _ID["GLOBAL_POSITION_INT"]: self._global_position_int,
+            _ID["LOCAL_POSITION_NED"]: self._local_position_ned,
+            _ID["GPS_GLOBAL_ORIGIN"]: self._gps_global_origin,
+        }
+        for mid in PRESSURE_IDS.values():
+            self._handlers[mid] = self._scaled_pressure
+
+    # ------------------------------------------------------------------ input
+
+    def feed(self, recv_s: float, msgid: int, sysid: int, compid: int, payload: bytes) -> None:
+        if sysid != self.sysid:
+            if self.sysid is None:
+                self._preselect_frame(recv_s, msgid, sysid, compid, payload)
+            else:
+                self.stats.ignored_by_sysid[sysid] = self.stats.ignored_by_sysid.get(sysid, 0) + 1
+            return
+        last = self._last_recv
+        if last is not None and (self._link_lost or recv_s - last > self.cfg.link_timeout_s):
+            if not self._link_lost:
+                self._emit(LinkLost(recv_s=last + self.cfg.link_timeout_s, silent_s=self.cfg.link_timeout_s))
+                self.stats.link_losses += 1
+            self._link_lost = False
+            self._emit(LinkRecovered(recv_s=recv_s, outage_s=recv_s - last))
+        self._last_recv = recv_s if last is None or recv_s > last else last
+        # skip early what is decided away (cheap path for unused streams)
+        if msgid in IMU_IDS:
+            chosen = self.imu_sel.chosen
+            if chosen is not None and IMU_IDS[msgid] != chosen:
+                self.imu_sel.dropped += 1
+                return
+        elif msgid in PRESSURE_IDS.values() and msgid != self._pressure_id:
+            self.stats.filtered["baro_other_instance"] += 1
+            return
+        try:
+            fields = self._decoders[msgid](payload)
+        except Exception as exc:  # struct errors on a CRC-valid but malformed payload
+            self._reject(recv_s, "malformed", f"{wire.msg_name(msgid)}: {exc}")
+            return
+        self._handlers[msgid](fields, recv_s, compid)
+
+    def problem(self, rejected: Rejected) -> None:
+        """A frame-level problem reported by the reader (garbage, CRC, unknown id...)."""
+        self.stats.rejected[rejected.kind] += 1
+        self.stats.events["Rejected"] += 1
+        self.out.append(rejected)
+
+    def tick(self, now_s: float) -> None:
+        """Live links: declare the link lost after ``link_timeout_s`` of silence."""
+        last = self._last_recv
+        if last is not None and not self._link_lost and now_s - last > self.cfg.link_timeout_s:
+            self._link_lost = True
+            self.stats.link_losses += 1
+            self._emit(LinkLost(recv_s=now_s, silent_s=now_s - last))
+
+    def finish(self) -> None:
+        """End of stream: decide what is pending and release everything held."""
+        if self.sysid is None and self._preselect:
+            self.stats.filtered["no_vehicle_heartbeat"] += len(self._preselect)
+            self._preselect.clear()
+        if self._cand is not None:
+            ct, crecv, _fn, _f, _c = self._cand
+            self._cand = None
+            self._reject(crecv, "time_jump", "unconfirmed jump at end of stream", ct)
+        self._flush_streams()
+        for sel, fn in ((self.imu_sel, self._imu_selected), (self.range_sel, self._range_selected), (self.ap_sel, self._ap_selected)):
+            for item in sel.decide():
+                fn(item)
+        self._resolve_attitude(flush=True)
+        origin, items = self.baro_ref.finish()
+        self._baro_released(origin, items)
+        origin, items = self.gnss_ref.finish()
+        self._gnss_released(origin, items)
+        self._ap_release(final=True)
+        self._finalise_stats()
+
+    # ------------------------------------------------------------------ vehicle
+
+    def _preselect_frame(self, recv_s, msgid, sysid, compid, payload) -> None:
+        if msgid == HEARTBEAT:
+            f = self._decoders[HEARTBEAT](payload)
+            if f["autopilot"] != MAV_AUTOPILOT_INVALID and f["type"] != MAV_TYPE_GCS:
+                self.sysid = sysid
+                self._heartbeat(f, recv_s, compid)
+                held = list(self._preselect)
+                self._preselect.clear()
+                for fr in held:
+                    self.feed(*fr)
+                self.feed(recv_s, msgid, sysid, compid, payload)
+                return
+        if len(self._preselect) >= self.cfg.preselect_max_frames:
+            self._preselect.popleft()
+            self.stats.filtered["before_vehicle_heartbeat"] += 1
+        self._preselect.append((recv_s, msgid, sysid, compid, payload))
+
+    def _heartbeat(self, f, recv_s, compid) -> None:
+        if self.autopilot is None and f["autopilot"] != MAV_AUTOPILOT_INVALID and f["type"] != MAV_TYPE_GCS:
+            self.autopilot = f["autopilot"]
+            self.ap_compid = compid
+            self.stats.vehicle = VehicleInfo(self.sysid, compid, f["type"], f["autopilot"])
+
+    # ------------------------------------------------------------------ time
+
+    def _timed(self, t_us: int, recv_s: float, compid: int, fn, f) -> None:
+        """Route a ``time_boot_ms``-stamped message through the vehicle clock, then to ``fn``."""
+        if compid != self.ap_compid:
+            # another component's clock: mapped onto ours, never drives it
+            self._stream_time(("boot_ms", compid, fn.__name__), t_us, recv_s, fn, f)
+            return
+        clock = self.clock
+        if self._cand is not None:
+            ct, crecv, cfn, cf, _ = self._cand
+            self._cand = None
+            if clock.confirms(ct, t_us):
+                if clock.is_reboot(ct):
+                    self._reboot(ct, crecv)
+                else:
+                    clock.jump_to(ct, crecv)
+                clock.accept(ct, crecv)
+                cfn(cf, ct, crecv)
+            else:
+                self._reject(crecv, "time_jump", f"vehicle time {ct} us against {clock.last_t_us} us", ct)
+        if clock.classify(t_us, recv_s) == HOLD:
+            self._cand = (t_us, recv_s, fn, f, compid)
+            return
+        clock.accept(t_us, recv_s)
+        fn(f, t_us, recv_s)
+        if self.att.pending:
+            self._resolve_attitude()
+
+    def _stream_time(self, key, t_raw: int, recv_s: float, fn, f) -> None:
+        """A time that may be on another clock (``time_usec``, other components): see StreamClocks."""
+        for t_us, (ffn, ff, frecv) in self.streams.map(key, t_raw, self.clock.estimate(recv_s), (fn, f, recv_s)):
+            ffn(ff, t_us, frecv)
+        if self.att.pending:
+            self._resolve_attitude()
+
+    def _flush_streams(self) -> None:
+        for t_us, (ffn, ff, frecv) in self.streams.flush():
+            ffn(ff, t_us, frecv)
+
+    def _reboot(self, t_us: int, recv_s: float) -> None:
+        # settle what belongs to the old boot first
+        self._flush_streams()
+        for sel, fn in ((self.imu_sel, self._imu_selected), (self.range_sel, self._range_selected), (self.ap_sel, self._ap_selected)):
+            for item in sel.decide():
+                fn(item)
+        self._resolve_attitude(flush=True)
+        last = self.clock.last_t_us
+        boot = self.clock.new_boot(t_us, recv_s)
+        self.att.reset()
+        self.streams.reset()
+        self._run = None
+        self._rel_alt = None
+        self.stats.reboots += 1
+        self._emit(Reboot(t_us=t_us, recv_s=recv_s, boot=boot, last_t_us=last if last is not None else 0))
+
+    def _system_time(self, f, recv_s, compid) -> None:
+        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._system_time_at, f)
+
+    def _system_time_at(self, f, t_us, recv_s) -> None:
+        self.clock.set_unix_offset(f["time_unix_usec"], t_us)
+
+    def _usec(self, t_usec: int, recv_s: float, what: str) -> Optional[int]:
+        t = self.clock.boot_from_usec(t_usec, recv_s)
+        if t is None:
+            self._reject(recv_s, "no_time", f"{what}: cannot place time_usec {t_usec} on the vehicle clock")
+        return t
+
+    # ------------------------------------------------------------------ attitude and IMU
+
+    def _attitude(self, f, recv_s, compid) -> None:
+        if not _finite(f["roll"], f["pitch"], f["yaw"]):
+            self._reject(recv_s, "nan", "ATTITUDE with a non-finite angle")
+            return
+        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._attitude_at, quat_from_euler(f["roll"], f["pitch"], f["yaw"]))
+
+    def _attitude_quaternion(self, f, recv_s, compid) -> None:
+        q = (f["q1"], f["q2"], f["q3"], f["q4"])
+        if not _finite(*q):
+            self._reject(recv_s, "nan", "ATTITUDE_QUATERNION with a non-finite component")
+            return
+        n = math.sqrt(sum(c * c for c in q))
+        if not 0.5 < n < 2.0:
+            self._reject(recv_s, "impossible", f"ATTITUDE_QUATERNION norm {n:.3g}")
+            return
+        q = tuple(c / n for c in q)
+        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._attitude_at, q)
+
+    def _attitude_at(self, q, t_us, recv_s) -> None:
+        self.att.add(t_us, q)
+
+    def _highres_imu(self, f, recv_s, compid) -> None:
+        upd = f["fields_updated"]
+        if upd and not (upd & 0b111):
+            self.stats.filtered["imu_accel_not_updated"] += 1
+            return
+        fb = (f["xacc"], f["yacc"], f["zacc"])  # m/s^2, body FRD
+        self._imu(fb, "HIGHRES_IMU", f["time_usec"], True, recv_s, compid)
+
+    def _raw_imu(self, f, recv_s, compid) -> None:
+        if self.autopilot != MAV_AUTOPILOT_ARDUPILOTMEGA:
+            self.stats.filtered["raw_imu_not_ardupilot"] += 1  # raw sensor counts elsewhere
+            return
+        fb = (f["xacc"] * MILLI_G_MPS2, f["yacc"] * MILLI_G_MPS2, f["zacc"] * MILLI_G_MPS2)  # milli-g
+        self._imu(fb, "RAW_IMU", f["time_usec"], True, recv_s, compid)
+
+    def _scaled_imu_handler(self, name: str):
+        def handler(f, recv_s, compid) -> None:
+            fb = (f["xacc"] * MILLI_G_MPS2, f["yacc"] * MILLI_G_MPS2, f["zacc"] * MILLI_G_MPS2)  # milli-g
+            self._imu(fb, name, f["time_boot_ms"] * 1000, False, recv_s, compid)
+
+        return handler
+
+    def _imu(self, fb, name, t_raw, usec: bool, recv_s, compid) -> None:
+        if self.imu_sel.chosen is None:
+            for it in self.imu_sel.note(name, self.clock.last_t_us):
+                self._imu_selected(it)
+        if not _finite(*fb):
+            self._reject(recv_s, "nan", f"{name} with a non-finite acceleration")
+            return
+        if max(abs(fb[0]), abs(fb[1]), abs(fb[2])) > MAX_SPECIFIC_FORCE_MPS2:
+            self._reject(recv_s, "impossible", f"{name} acceleration beyond 50 g")
+            return
+        if usec:
+            t = self._usec(t_raw, recv_s, name)
+            if t is not None:
+                self._stream_time((name, compid), t, recv_s, self._imu_at, (fb, name))
+        else:
+            self._timed(t_raw, recv_s, compid, self._imu_at, (fb, name))
+
+    def _imu_at(self, payload, t_us, recv_s) -> None:
+        fb, name = payload
+        item = (t_us, recv_s, self.clock.boot, fb, name)
+        for it in self.imu_sel.offer(name, item):
+            self._imu_selected(it)
+
+    def _imu_selected(self, item) -> None:
+        self.stats.imu_source = self.imu_sel.chosen
+        self.att.pending.append((item[0], item))
+        self._resolve_attitude()
+
+    def _resolve_attitude(self, flush: bool = False) -> None:
+        for item, q, nearest in self.att.resolve(self.clock.last_t_us, flush):
+            t_us, recv_s, boot, fb, name = item
+            if q is None:
+                self._reject(recv_s, "no_attitude", f"{name}: no attitude within {self.cfg.attitude_max_age_s} s", t_us, boot)
+                continue
+            f_up = f_up_from_body(fb, down_row_from_quat(q))
+            self._guarded("imu", t_us, recv_s, boot, SpecificForceUp(t_us, recv_s, boot, f_up, name))
+
+    # ------------------------------------------------------------------ barometer
+
+    def _scaled_pressure(self, f, recv_s, compid) -> None:
+        p_pa = f["press_abs"] * 100.0  # hPa -> Pa
+        if not _finite(p_pa):
+            self._reject(recv_s, "nan", "SCALED_PRESSURE with a non-finite pressure")
+            return
+        if not 0.0 < p_pa < MAX_PRESSURE_PA:
+            self._reject(recv_s, "impossible", f"static pressure {p_pa:.6g} Pa")
+            return
+        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._pressure_at, p_pa)
+
+    def _pressure_at(self, p_pa, t_us, recv_s) -> None:
+        self._last_pressure_pa = p_pa
+        run = self._run
+        if run is not None:
+            run[2] = min(run[2], p_pa)
+            run[3] = max(run[3], p_pa)
+        rel = self._rel_alt
+        rel_m = rel[2] if rel is not None and abs(rel[0] - t_us) <= REL_ALT_MAX_AGE_US else None
+        item = (t_us, recv_s, self.clock.boot, p_pa, rel_m)
+        origin, items = self.baro_ref.push(item)
+        self._baro_released(origin, items)
+
+    def _baro_home_value(self, home, before, after) -> Optional[float]:
+        window = before
+        if not window:
+            if not after:
+                return None
+            t0 = after[0][0]
+            if after[-1][0] - t0 < self.baro_ref.window_us:
+                return None
+            window = [it for it in after if it[0] - t0 <= self.baro_ref.window_us]
+        vals = []
+        for _t, _r, _b, p, rel_m in window:
+            # the pressure at home height: p was measured rel_m above home
+            vals.append(p / pressure_at_height_pa(rel_m, 1.0) if rel_m is not None else p)
+        return sum(vals) / len(vals)
+
+    def _baro_released(self, origin, items) -> None:
+        if not items and origin is None:
+            return
+        p_ref = self.baro_ref.value
+        if origin is not None:
+            first = items[0] if items else None
+            alt = self.baro_ref.home[2] if origin == "home" and self.baro_ref.home else None
+            self._reference_event("baro", p_ref, alt, origin, first)
+        inst = self.cfg.baro_instance
+        for t_us, recv_s, boot, p_pa, _rel in items:
+            h = height_from_pressure_m(p_pa, p_ref)
+            self._guarded("baro", t_us, recv_s, boot, BaroHeight(t_us, recv_s, boot, h, p_pa, inst))
+
+    # ------------------------------------------------------------------ GNSS
+
+    def _gps_raw_int(self, f, recv_s, compid) -> None:
+        fix = f["fix_type"]
+        if f["alt_ellipsoid"] != 0 and fix >= self.cfg.min_fix_type:
+            self._geoid_sep_m = (f["alt_ellipsoid"] - f["alt"]) / 1000.0
+        if fix < self.cfg.min_fix_type:
+            self.stats.filtered["gnss_no_fix"] += 1
+            return
+        if self.cfg.gnss_altitude == "msl":
+            alt_m = f["alt"] / 1000.0  # mm MSL
+        else:
+            if f["alt_ellipsoid"] == 0:
+                self.stats.filtered["gnss_no_ellipsoid_alt"] += 1
+                return
+            alt_m = f["alt_ellipsoid"] / 1000.0  # mm above WGS84
+        v_acc = f["v_acc"]
+        sigma_m = v_acc / 1000.0 if 0 < v_acc < UINT32_MAX else None  # mm, 0 = unknown
+        payload = (alt_m, sigma_m, fix, f["satellites_visible"])
+        if f["time_usec"] == 0:  # not filled: placed on the vehicle clock by receive time
+            t_us = self.clock.estimate(recv_s)
+            if t_us is None:
+                self._reject(recv_s, "no_time", "GPS_RAW_INT without time before any timed message")
+            else:
+                self._gnss_at(payload, t_us, recv_s)
+            return
+        t_us = self._usec(f["time_usec"], recv_s, "GPS_RAW_INT")
+        if t_us is not None:
+            self._stream_time(("GPS_RAW_INT", compid), t_us, recv_s, self._gnss_at, payload)
+
+    def _gnss_at(self, payload, t_us, recv_s) -> None:
+        alt_m, sigma_m, fix, sats = payload
+        item = (t_us, recv_s, self.clock.boot, alt_m, sigma_m, fix, sats)
+        origin, items = self.gnss_ref.push(item)
+        self._gnss_released(origin, items)
+
+    def _gnss_home_value(self, home, before, after) -> Optional[float]:
+        alt_msl = home[2]
+        if self.cfg.gnss_altitude == "msl":
+            return alt_msl
+        if self._geoid_sep_m is None:
+            return None
+        return alt_msl + self._geoid_sep_m
+
+    def gnss_ref_msl_m(self) -> Optional[float]:
+        v = self.gnss_ref.value
+        if v is None:
+            return None
+        if self.cfg.gnss_altitude == "msl":
+            return v
+        return v - self._geoid_sep_m if self._geoid_sep_m is not None else None
+
+    def _gnss_released(self, origin, items) -> None:
+        if origin is not None:
+            self._reference_event("gnss", self.gnss_ref.value, self.gnss_ref_msl_m(), origin, items[0] if items else None)
+        ref = self.gnss_ref.value
+        for t_us, recv_s, boot, alt_m, sigma_m, fix, sats in items:
+            self._guarded("gnss", t_us, recv_s, boot, GnssHeight(t_us, recv_s, boot, alt_m - ref, alt_m, sigma_m, fix, sats))
+        if origin is not None:
+            self._ap_release(final=False)
+
+    def _home_position(self, f, recv_s, compid) -> None:
+        alt_m = f["altitude"] / 1000.0  # mm MSL
+        if not _finite(alt_m):
+            return
+        t_us = self.clock.last_t_us if self.clock.last_t_us is not None else 0
+        boot = self.clock.boot
+        self.baro_ref.set_home(t_us, boot, alt_m)
+        self.gnss_ref.set_home(t_us, boot, alt_m)
+        if self.baro_ref.value is None and self.baro_ref.held:
+            self._baro_released(*self.baro_ref._try(final=False))
+        if self.gnss_ref.value is None and self.gnss_ref.held:
+            self._gnss_released(*self.gnss_ref._try(final=False))
+
+    def _reference_event(self, kind, value, alt_msl, origin, item) -> None:
+        t_us, recv_s, boot = (item[0], item[1], item[2]) if item else (0, 0.0, self.clock.boot)
+        self.stats.references[kind] = ReferenceRecord(value, origin, alt_msl)
+        self._emit(ReferenceSet(t_us=t_us, recv_s=recv_s, boot=boot, kind=kind, value=value, alt_ref_msl_m=alt_msl, origin=origin))
+
+    # ------------------------------------------------------------------ rangefinder
+
+    def _distance_sensor(self, f, recv_s, compid) -> None:
+        if f["orientation"] != MAV_SENSOR_ROTATION_PITCH_270:
+            self.stats.filtered["range_not_downward"] += 1
+            return
+        self._note(self.range_sel, "DISTANCE_SENSOR", self._range_selected)
+        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._distance_sensor_at, f)
+
+    def _distance_sensor_at(self, f, t_us, recv_s) -> None:
+        item = (t_us, recv_s, self.clock.boot, "DISTANCE_SENSOR", f)
+        for it in self.range_sel.offer("DISTANCE_SENSOR", item):
+            self._range_selected(it)
+
+    def _rangefinder(self, f, recv_s, compid) -> None:
+        t_us = self.clock.estimate(recv_s)  # no time field: see clock.py
+        if t_us is None:
+            self._reject(recv_s, "no_time", "RANGEFINDER before any timed message")
+            return
+        self._note(self.range_sel, "RANGEFINDER", self._range_selected)
+        item = (t_us, recv_s, self.clock.boot, "RANGEFINDER", f)
+        for it in self.range_sel.offer("RANGEFINDER", item):
+            self._range_selected(it)
+
+    def _range_selected(self, item) -> None:
+        t_us, recv_s, boot, name, f = item
+        self.stats.range_source = self.range_sel.chosen
+        if name == "DISTANCE_SENSOR":
+            raw = f["current_distance"]
+            range_m = raw / 100.0  # cm
+            lo_m = f["min_distance"] / 100.0
+            hi_m = f["max_distance"] / 100.0 if f["max_distance"] > 0 else self.cfg.rangefinder_max_m
+            if f["signal_quality"] == DISTANCE_SENSOR_QUALITY_INVALID:
+                self._reject(recv_s, "invalid_quality", f"{name} signal_quality 1 (invalid)", t_us, boot)
+                return
+        else:
+            raw = f["distance"]
+            range_m = raw  # m
+            lo_m, hi_m = self.cfg.rangefinder_min_m, self.cfg.rangefinder_max_m
+            if not _finite(range_m):
+                self._reject(recv_s, "nan", f"{name} with a non-finite distance", t_us, boot)
+                return
+            if range_m < 0:
+                self._reject(recv_s, "impossible", f"{name} negative distance {range_m:.3g} m", t_us, boot)
+                return
+        if not lo_m <= range_m <= hi_m:
+            self._reject(recv_s, "out_of_range", f"{name} {range_m:.3f} m outside [{lo_m:g}, {hi_m:g}] m", t_us, boot)
+            return
+        if self._stuck(raw, t_us, boot):
+            self._reject(recv_s, "stuck", f"{name} reads {range_m:.3f} m for {self.cfg.rangefinder_stuck_s} s while the baro moved", t_us, boot)
+            return
+        q = self.att.latest(t_us)
+        if q is None:
+            self._reject(recv_s, "no_attitude", f"{name}: no attitude for tilt correction", t_us, boot)
+            return
+        c = cos_tilt(down_row_from_quat(q))
+        if c < self._cos_max_tilt:
+            self._reject(recv_s, "tilt", f"{name}: tilted {math.degrees(math.acos(max(-1.0, min(1.0, c)))):.0f} deg", t_us, boot)
+            return
+        self._guarded("range", t_us, recv_s, boot, RangeHeight(t_us, recv_s, boot, range_m * c, range_m, name))
+
+    def _stuck(self, raw, t_us, boot) -> bool:
+        run = self._run
+        p = self._last_pressure_pa
+        if run is None or run[0] != raw or run[4] != boot or t_us < run[1]:
+            self._run = [raw, t_us, p, p, boot]
+            return False
+        if t_us - run[1] < self._stuck_us or run[2] is None:
+            return False
+        moved_m = height_from_pressure_m(run[2], run[3])  # p_min above p_max
+        return moved_m >= self.cfg.rangefinder_stuck_min_move_m
+
+    # ------------------------------------------------------------------ autopilot's own height
+
+    def _global_position_int(self, f, recv_s, compid) -> None:
+        self._note(self.ap_sel, "GLOBAL_POSITION_INT", self._ap_selected)
+        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._global_position_int_at, f)
+
+    def _global_position_int_at(self, f, t_us, recv_s) -> None:
+        rel_m = f["relative_alt"] / 1000.0  # mm above home
+        self._rel_alt = (t_us, self.clock.boot, rel_m)
+        item = (t_us, recv_s, self.clock.boot, f["alt"] / 1000.0, rel_m)  # alt: mm MSL
+        for it in self.ap_sel.offer("GLOBAL_POSITION_INT", item):
+            self._ap_selected(it)
+
+    def _local_position_ned(self, f, recv_s, compid) -> None:
+        if not _finite(f["z"]):
+            self._reject(recv_s, "nan", "LOCAL_POSITION_NED with a non-finite z")
+            return
+        self._note(self.ap_sel, "LOCAL_POSITION_NED", self._ap_selected)
+        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._local_position_ned_at, f)
+
+    def _local_position_ned_at(self, f, t_us, recv_s) -> None:
+        up_m = -f["z"]  # z is down, m, above the EKF origin
+        item = (t_us, recv_s, self.clock.boot, None, up_m)
+        for it in self.ap_sel.offer("LOCAL_POSITION_NED", item):
+            self._ap_selected(it)
+
+    def _gps_global_origin(self, f, recv_s, compid) -> None:
+        self._ekf_origin_msl_m = f["altitude"] / 1000.0  # mm MSL
+
+    def _note(self, sel, name: str, then) -> None:
+        if sel.chosen is None:
+            for it in sel.note(name, self.clock.last_t_us):
+                then(it)
+
+    def _ap_selected(self, item) -> None:
+        self.stats.autopilot_source = self.ap_sel.chosen
+        self._ap_held.append(item)
+        self._ap_release(final=False)
+
+    def _ap_release(self, final: bool) -> None:
+        held = self._ap_held
+        if not held:
+            return
+        src = self.ap_sel.chosen
+        if self._ap_mode is None:
+            ref_msl = self.gnss_ref_msl_m()
+            if ref_msl is not None and (src == "GLOBAL_POSITION_INT" or self._ekf_origin_msl_m is not None):
+                self._ap_mode = "gnss_reference"
+            elif final or held[-1][2] != held[0][2] or held[-1][0] - held[0][0] >= self._gnss_wait_us:
+                self._ap_mode = "autopilot_home" if src == "GLOBAL_POSITION_INT" else "ekf_origin"
+            else:
+                return
+            self.stats.autopilot_reference = self._ap_mode
+        ref_msl = self.gnss_ref_msl_m()
+        while held:
+            t_us, recv_s, boot, alt_msl, local_up = held.popleft()
+            if self._ap_mode == "gnss_reference":
+                if src == "GLOBAL_POSITION_INT":
+                    h = alt_msl - ref_msl
+                else:
+                    h = local_up + self._ekf_origin_msl_m - ref_msl
+            else:
+                h = local_up
+            self._guarded("autopilot", t_us, recv_s, boot, AutopilotHeight(t_us, recv_s, boot, h, src))
+
+    # ------------------------------------------------------------------ output
+
+    def _guarded(self, kind: str, t_us: int, recv_s: float, boot: int, sample) -> None:
+        verdict, gap_s = self.guard.check(kind, boot, t_us)
+        if verdict != "ok":
+            self._reject(recv_s, verdict, f"{kind} at {t_us} us", t_us, boot)
+            return
+        if gap_s > 0.0:
+            self.stats.gaps.append(GapRecord(kind, t_us, boot, gap_s))
+            self._emit(Gap(t_us=t_us, recv_s=recv_s, boot=boot, kind=kind, length_s=gap_s))
+        self.stats.samples[kind] += 1
+        self.out.append(sample)
+
+    def _emit(self, event) -> None:
+        self.stats.events[type(event).__name__] += 1
+        self.out.append(event)
+
+    def _reject(self, recv_s: float, kind: str, detail: str, t_us: Optional[int] = None, boot: Optional[int] = None) -> None:
+        self.stats.rejected[kind] += 1
+        self._emit(Rejected(recv_s=recv_s, kind=kind, detail=detail, t_us=t_us, boot=boot if boot is not None or t_us is None else self.clock.boot))
+
+    def _finalise_stats(self) -> None:
+        st = self.stats
+        st.attitude_nearest = self.att.nearest
+        st.imu_source = self.imu_sel.chosen
+        st.range_source = self.range_sel.chosen
+        st.autopilot_source = self.ap_sel.chosen
+        st.duration_s = self.clock.total_duration_us / 1e6
+
+
+def _item_t(item):
+    return item[0], item[2]
+
+
+def _mean_pressure(items) -> float:
+    return sum(it[3] for it in items) / len(items)
+
+
+def _mean_alt(items) -> float:
+    return sum(it[3] for it in items) / len(items)
