@@ -46,7 +46,7 @@ ROW_BARO, ROW_AUX = 0, 1
 def bank_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da,
                 has_baro, xi_new, phi_u, gamma_u2,
                 aux_on, aux_z, aux_var, aux_age,
-                inn, sdiag, s12_out, nis_out, dof_out):  # pragma: no cover - compiled
+                inn, sdiag, s12_out, nis_out, dof_out, K, Fy, Hr, rb):  # pragma: no cover - compiled
     """Advance every channel by one epoch, in place.
 
     Per channel ``c``: rows are the baro row (when ``has_baro`` and
@@ -54,6 +54,10 @@ def bank_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da,
     Outputs: ``inn[c] = (baro, aux)`` innovations, ``sdiag[c]`` their
     variances (NaN when unused), ``s12_out[c]`` their covariance,
     ``nis_out[c]`` = r^T S^-1 r and ``dof_out[c]`` the number of rows.
+    For the cross-covariances it also leaves, per channel and used row slot
+    ``j < dof``: the gain column ``K[c, :, j]``, ``Phi_y`` row ``Fy[c, j]``,
+    observation row ``Hr[c, j]`` (of ``x(k+1)``) and whether it is the baro
+    row ``rb[c, j]``.
     """
     hT2 = 0.5 * T * T
     for c in range(x.shape[0]):
@@ -113,6 +117,21 @@ def bank_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da,
                 f20 = fa0; f21 = fa1; f22 = fa2; f23 = fa3; gh2 = gha; y2 = ya; n2 = na
                 nr = 2
         dof_out[c] = nr
+        rb[c, 0] = b1
+        rb[c, 1] = False
+        Fy[c, 0, 0] = f10; Fy[c, 0, 1] = f11; Fy[c, 0, 2] = f12; Fy[c, 0, 3] = f13
+        Fy[c, 1, 0] = f20; Fy[c, 1, 1] = f21; Fy[c, 1, 2] = f22; Fy[c, 1, 3] = f23
+        for j in range(2):
+            for i in range(4):
+                K[c, i, j] = 0.0
+                Hr[c, j, i] = 0.0
+        if nr >= 1:
+            if b1:
+                Hr[c, 0, 0] = 1.0; Hr[c, 0, 2] = 1.0
+            else:
+                Hr[c, 0, 0] = 1.0; Hr[c, 0, 1] = -aux_age[c]
+        if nr == 2:
+            Hr[c, 1, 0] = 1.0; Hr[c, 1, 1] = -aux_age[c]
         if has_baro:
             baro_prev[c] = xi_new
         else:
@@ -143,6 +162,7 @@ def bank_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da,
                 n22 = q22 - k2 * c12; n23 = q23 - k2 * c13
                 n33 = q33 - k3 * c13
                 nis_out[c] = i1 * i1 / s11
+                K[c, 0, 0] = k0; K[c, 1, 0] = k1; K[c, 2, 0] = k2; K[c, 3, 0] = k3
                 slot = 0 if b1 else 1
                 inn[c, slot] = i1
                 sdiag[c, slot] = s11
@@ -179,6 +199,8 @@ def bank_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da,
                 n23 = q23 - ka2 * c13 - kb2 * c23
                 n33 = q33 - ka3 * c13 - kb3 * c23
                 nis_out[c] = i1 * (w11 * i1 + w12 * i2) + i2 * (w12 * i1 + w22 * i2)
+                K[c, 0, 0] = ka0; K[c, 1, 0] = ka1; K[c, 2, 0] = ka2; K[c, 3, 0] = ka3
+                K[c, 0, 1] = kb0; K[c, 1, 1] = kb1; K[c, 2, 1] = kb2; K[c, 3, 1] = kb3
                 inn[c, 0] = i1; sdiag[c, 0] = s11
                 inn[c, 1] = i2; sdiag[c, 1] = s22
                 s12_out[c] = s12
@@ -188,6 +210,93 @@ def bank_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da,
         P[c, 1, 0] = n01; P[c, 1, 1] = n11; P[c, 1, 2] = n12; P[c, 1, 3] = n13
         P[c, 2, 0] = n02; P[c, 2, 1] = n12; P[c, 2, 2] = n22; P[c, 2, 3] = n23
         P[c, 3, 0] = n03; P[c, 3, 1] = n13; P[c, 3, 2] = n23; P[c, 3, 3] = n33
+
+
+PAIRS = ((GNSS, RNG), (GNSS, BARO), (RNG, BARO))
+
+
+@njit(cache=True)
+def cross_kernel(Pc, pairs, T, g0, g1, q_dh, q_da, gamma_u2, dof, K, Fy, Hr, rb):  # pragma: no cover
+    """Propagate the cross-covariances ``Pc[p] = cov(e_a, e_b)`` of channel pairs.
+
+    The channels share the INS (process noise ``w``) and the baro (its
+    differenced noise ``gamma_u n``), so with ``e(k+1) = A e(k) + w - K v``,
+    ``A = Phi - K Phi_y``, ``v = H w + n``:
+
+        Pc+ = A_a Pc A_b^T + Bxx - K_a H_a Bxx - Bxx H_b^T K_b^T
+              + K_a (H_a Bxx H_b^T + R_ab) K_b^T,
+
+    ``R_ab = gamma_u^2`` between two baro rows, else 0.
+    """
+    hT2 = 0.5 * T * T
+    Phi = np.eye(4)
+    Phi[0, 1] = T; Phi[0, 3] = -hT2; Phi[1, 3] = -T
+    Bxx = np.zeros((4, 4))
+    g = np.array([g0, g1, 0.0, 0.0])
+    for i in range(4):
+        for j in range(4):
+            Bxx[i, j] = g[i] * g[j]
+    Bxx[2, 2] += q_dh
+    Bxx[3, 3] += q_da
+    A = np.empty((2, 4, 4))
+    HB = np.empty((2, 2, 4))  # H Bxx per side
+    for p in range(pairs.shape[0]):
+        ca = pairs[p, 0]
+        cb = pairs[p, 1]
+        for side in range(2):
+            c = ca if side == 0 else cb
+            for i in range(4):
+                for j in range(4):
+                    acc = Phi[i, j]
+                    for r in range(dof[c]):
+                        acc -= K[c, i, r] * Fy[c, r, j]
+                    A[side, i, j] = acc
+            for r in range(2):
+                for j in range(4):
+                    acc = 0.0
+                    for m in range(4):
+                        acc += Hr[c, r, m] * Bxx[m, j]
+                    HB[side, r, j] = acc
+        # A_a Pc A_b^T
+        tmp = np.zeros((4, 4))
+        for i in range(4):
+            for j in range(4):
+                acc = 0.0
+                for m in range(4):
+                    acc += A[0, i, m] * Pc[p, m, j]
+                tmp[i, j] = acc
+        out = np.zeros((4, 4))
+        for i in range(4):
+            for j in range(4):
+                acc = 0.0
+                for m in range(4):
+                    acc += tmp[i, m] * A[1, j, m]
+                out[i, j] = acc + Bxx[i, j]
+        na = dof[ca]
+        nb = dof[cb]
+        # - K_a H_a Bxx - Bxx H_b^T K_b^T
+        for i in range(4):
+            for j in range(4):
+                acc = 0.0
+                for r in range(na):
+                    acc += K[ca, i, r] * HB[0, r, j]
+                for r in range(nb):
+                    acc += HB[1, r, i] * K[cb, j, r]
+                out[i, j] -= acc
+        # + K_a (H_a Bxx H_b^T + R_ab) K_b^T
+        for r in range(na):
+            for s in range(nb):
+                m_rs = 0.0
+                for m in range(4):
+                    m_rs += HB[0, r, m] * Hr[cb, s, m]
+                if rb[ca, r] and rb[cb, s]:
+                    m_rs += gamma_u2
+                for i in range(4):
+                    for j in range(4):
+                        out[i, j] += K[ca, i, r] * m_rs * K[cb, j, s]
+        for i in range(4):
+            for j in range(4):
+                Pc[p, i, j] = out[i, j]
 
 
 @dataclass(frozen=True, slots=True)
@@ -205,8 +314,9 @@ class BankStep:
 class ChannelBank:
     """The three channel filters and their shared epoch bookkeeping."""
 
-    def __init__(self, model: Model):
+    def __init__(self, model: Model, track_cross: bool = True):
         self.model = model
+        self.track_cross = track_cross
         self._printed = model.accel_noise_form == "printed"
         self.x = np.zeros((N_CH, N_STATES))
         self.P = np.zeros((N_CH, N_STATES, N_STATES))
@@ -221,15 +331,35 @@ class ChannelBank:
         self._aux_z = np.zeros(N_CH)
         self._aux_var = np.ones(N_CH)
         self._aux_age = np.zeros(N_CH)
+        self._K = np.zeros((N_CH, N_STATES, 2))
+        self._Fy = np.zeros((N_CH, 2, N_STATES))
+        self._Hr = np.zeros((N_CH, 2, N_STATES))
+        self._rb = np.zeros((N_CH, 2), dtype=np.bool_)
+        self._pairs = np.array(PAIRS, dtype=np.int64)
+        # cross-covariances cov(e_a, e_b) for the pairs in PAIRS
+        self.Pc = np.zeros((len(PAIRS), N_STATES, N_STATES))
 
     @property
     def started(self) -> bool:
         return self.t_us is not None
 
     def start(self, t_us: int, baro_m: float) -> None:
+        """Initialise every channel from the same prior: their errors start identical."""
         for c in range(N_CH):
             self.reinit(c, t_us, baro_m)
+        self.Pc[:] = self.P[0]
         self.t_us = t_us
+
+    def cross(self, a: int, b: int) -> np.ndarray:
+        """``cov(e_a, e_b)``, the error cross-covariance of channels ``a`` and ``b``."""
+        if a == b:
+            return self.P[a]
+        for p, (i, j) in enumerate(PAIRS):
+            if (i, j) == (a, b):
+                return self.Pc[p]
+            if (i, j) == (b, a):
+                return self.Pc[p].T
+        raise ValueError((a, b))
 
     def reinit(self, c: int, t_us: int, baro_m: Optional[float]) -> None:
         """(Re)initialise channel ``c`` from the prior, conditioned on a baro sample."""
@@ -237,6 +367,9 @@ class ChannelBank:
         self.x[c] = st.x
         self.P[c] = st.P
         self.baro_prev[c] = math.nan if baro_m is None else baro_m
+        for p, (i, j) in enumerate(PAIRS):
+            if c in (i, j):
+                self.Pc[p] = 0.0  # a fresh prior: independent of the others' errors
 
     def channel_state(self, c: int) -> ChannelState:
         prev = self.baro_prev[c]
@@ -275,7 +408,11 @@ class ChannelBank:
         bank_kernel(self.x, self.P, self.baro_prev, T, ep.dp_m, ep.dv_mps, g0, g1, q_dh, q_da,
                     has_baro, ep.baro_m if has_baro else 0.0, phi_u, gamma_u2,
                     aux_on, self._aux_z, self._aux_var, self._aux_age,
-                    self._inn, self._sdiag, self._s12, self._nis, self._dof)
+                    self._inn, self._sdiag, self._s12, self._nis, self._dof,
+                    self._K, self._Fy, self._Hr, self._rb)
+        if self.track_cross:
+            cross_kernel(self.Pc, self._pairs, T, g0, g1, q_dh, q_da, gamma_u2, self._dof,
+                         self._K, self._Fy, self._Hr, self._rb)
         self.t_us = ep.t_us
         return BankStep(ep.t_us, self._inn.copy(), self._sdiag.copy(), self._s12.copy(),
                         self._nis.copy(), self._dof.copy())
