@@ -460,7 +460,7 @@ def _describe(err: dict) -> str:
     msg = str(err.get("msg", "invalid"))
     if msg.startswith("Value error, "):
         msg = msg[len("Value error, ") :]
-    return f"{loc or 'top level'}: {msg}"
+    return f"{loc}: {msg}" if loc else msg
 
 
 def scenario_from_dict(data: object, origin: str = "<dict>") -> Scenario:

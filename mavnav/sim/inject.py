@@ -1,0 +1,603 @@
+"""Fault injection into recorded tlogs: real sensor data with a known fault onset.
+
+The log is split into records (8-byte big-endian receive time + one MAVLink
+frame). A record is a *frame* when its timestamp is plausible (years
+2000-2100), its magic byte and length fit, and its CRC (with the message's
+CRC_EXTRA) checks; anything else (radio garbage, truncated frames) is kept as
+an opaque *junk* record, byte for byte, up to the next valid record.
+
+Every record the faults do not touch is copied byte for byte. A faulted
+message is decoded with pymavlink, changed, and re-framed with its original
+MAVLink version, incompat/compat flags, sequence number, system and component
+id, and a correct CRC (a signed frame loses its signature: it cannot be
+re-signed without the key; counted in the report).
+
+Vehicle time: the clock is the autopilot component's ``time_boot_ms`` (its
+``time_usec`` only while no ``time_boot_ms`` has been seen). A record takes
+its own ``time_boot_ms``, or its own ``time_usec`` when that is within 1 s of
+the clock (zero and Unix-looking values above 1e14 us are ignored: GNSS and
+old ArduPilot IMU stamps are not always on the boot clock), else the latest
+clock value before it. The clock running backwards by more than
+``max(1 s, min(10 s, half its value))`` is a reboot (``boot`` counts from 0);
+smaller steps back are jitter between message types. A fault
+applies in the boot where its onset is first reached (or the ``boot`` it
+names), to the vehicle's system only, except ``link_loss`` and ``reboot``,
+which remove every record in the window (all systems, junk included).
+"""
+
+from __future__ import annotations
+
+import re
+import struct
+from dataclasses import dataclass
+from typing import Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+from pymavlink.dialects.v20 import ardupilotmega as mav2
+
+from ..atmosphere import P0_PA, height_from_pressure_m, pressure_at_height_pa
+from ..errors import InputError
+from ..frames import down_row_from_euler
+from .faults import describe_fault
+from .scenario import Fault
+
+_TS_MIN_US = 946684800 * 10**6  # 2000-01-01
+_TS_MAX_US = 4102444800 * 10**6  # 2100-01-01
+_UNIX_US = 10**14  # a time_usec above this is Unix time, not boot time
+G_MILLI = 9.80665
+
+ID_HEARTBEAT = 0
+ID_GPS_RAW_INT, ID_GPS2_RAW = 24, 124
+ID_ATTITUDE = 30
+ID_HIGHRES_IMU = 105
+INT_IMU_IDS = (27, 26, 116, 129)  # RAW_IMU, SCALED_IMU, SCALED_IMU2, SCALED_IMU3 (milli-g)
+PRESSURE_IDS = (29, 137, 143)  # SCALED_PRESSURE, _2, _3 (hPa)
+ID_DISTANCE_SENSOR, ID_RANGEFINDER = 132, 173
+GNSS_IDS = (ID_GPS_RAW_INT, ID_GPS2_RAW)
+RNG_IDS = (ID_DISTANCE_SENSOR, ID_RANGEFINDER)
+BARO_IDS = PRESSURE_IDS + (ID_HIGHRES_IMU,)
+IMU_IDS = (ID_HIGHRES_IMU,) + INT_IMU_IDS
+
+_KIND_IDS = {
+    "gnss": GNSS_IDS,
+    "rng": RNG_IDS,
+    "baro": BARO_IDS,
+    "accel": IMU_IDS,
+}
+
+
+@dataclass(frozen=True)
+class Record:
+    start: int  # byte offset of the 8-byte timestamp
+    end: int  # one past the last byte of the record
+    recv_us: int  # receive time (junk: the leading 8 bytes, may be garbage)
+    is_frame: bool
+    version: int = 0  # 1 or 2
+    msgid: int = -1
+    sysid: int = -1
+    compid: int = -1
+
+
+# ---------------------------------------------------------------- splitting
+
+
+def _frame_end(data: bytes, pos: int) -> int:
+    """End of a valid record starting at ``pos``, or -1."""
+    n = len(data)
+    if pos + 8 + 8 > n:
+        return -1
+    ts = int.from_bytes(data[pos : pos + 8], "big")
+    if not (_TS_MIN_US <= ts <= _TS_MAX_US):
+        return -1
+    f = pos + 8
+    magic = data[f]
+    if magic == 0xFE:
+        plen = data[f + 1]
+        hdr = 6
+        msgid = data[f + 5]
+        flen = hdr + plen + 2
+    elif magic == 0xFD:
+        if f + 10 > n:
+            return -1
+        plen = data[f + 1]
+        if data[f + 2] & ~0x01:
+            return -1  # unknown incompat flag: not a frame we can trust
+        hdr = 10
+        msgid = data[f + 7] | (data[f + 8] << 8) | (data[f + 9] << 16)
+        flen = hdr + plen + 2 + (13 if data[f + 2] & 0x01 else 0)
+    else:
+        return -1
+    if f + flen > n:
+        return -1
+    cls = mav2.mavlink_map.get(msgid)
+    if cls is None:
+        # unknown message: accept only when a plausible record follows (or EOF)
+        nxt = f + flen
+        if nxt == n:
+            return nxt
+        if nxt + 9 <= n and _TS_MIN_US <= int.from_bytes(data[nxt : nxt + 8], "big") <= _TS_MAX_US and data[nxt + 8] in (0xFD, 0xFE):
+            return nxt
+        return -1
+    crc = mav2.x25crc(data[f + 1 : f + hdr + plen])
+    crc.accumulate(bytes((cls.crc_extra,)))
+    stored = data[f + hdr + plen] | (data[f + hdr + plen + 1] << 8)
+    return f + flen if crc.crc == stored else -1
+
+
+def _next_valid(data: bytes, start: int) -> int:
+    n = len(data)
+    i = start + 8
+    while True:
+        a = data.find(b"\xfd", i)
+        b = data.find(b"\xfe", i)
+        cands = [c for c in (a, b) if c >= 0]
+        if not cands:
+            return n
+        m = min(cands)
+        p = m - 8
+        if p >= start and _frame_end(data, p) > 0:
+            return p
+        i = m + 1
+
+
+def split_tlog(data: bytes) -> List[Record]:
+    """Split tlog bytes into frame and junk records covering every byte, in order."""
+    out: List[Record] = []
+    pos, n = 0, len(data)
+    while pos < n:
+        end = _frame_end(data, pos)
+        if end > 0:
+            f = pos + 8
+            if data[f] == 0xFE:
+                out.append(Record(pos, end, int.from_bytes(data[pos:f], "big"), True, 1,
+                                  data[f + 5], data[f + 3], data[f + 4]))
+            else:
+                msgid = data[f + 7] | (data[f + 8] << 8) | (data[f + 9] << 16)
+                out.append(Record(pos, end, int.from_bytes(data[pos:f], "big"), True, 2,
+                                  msgid, data[f + 5], data[f + 6]))
+            pos = end
+            continue
+        q = _next_valid(data, pos + 1)
+        ts = int.from_bytes(data[pos : pos + 8], "big") if pos + 8 <= n else 0
+        out.append(Record(pos, q, ts, False))
+        pos = q
+    return out
+
+
+# ---------------------------------------------------------------- frames
+
+
+_TIME_FIELD_CACHE: Dict[int, Optional[Tuple[int, str, float]]] = {}
+
+
+def _time_field(msgid: int) -> Optional[Tuple[int, str, float]]:
+    """(payload offset, struct code, seconds per unit) of a message's boot-time field."""
+    if msgid in _TIME_FIELD_CACHE:
+        return _TIME_FIELD_CACHE[msgid]
+    cls = mav2.mavlink_map.get(msgid)
+    res = None
+    if cls is not None:
+        tokens = re.findall(r"(\d*)([a-zA-Z?])", cls.unpacker.format.lstrip("<>=!@"))
+        offset = 0
+        for name, (count, code) in zip(cls.ordered_fieldnames, tokens):
+            if name in ("time_boot_ms", "time_usec"):
+                res = (offset, code, 1e-3 if name == "time_boot_ms" else 1e-6)
+                break
+            offset += struct.calcsize("<" + (count or "") + code)
+    _TIME_FIELD_CACHE[msgid] = res
+    return res
+
+
+def _payload(data: bytes, rec: Record) -> bytes:
+    f = rec.start + 8
+    hdr = 6 if rec.version == 1 else 10
+    return data[f + hdr : f + hdr + data[f + 1]]
+
+
+def _vehicle_time_s(data: bytes, rec: Record) -> Optional[Tuple[float, bool]]:
+    """(boot time in s, True if from time_boot_ms) of a frame, None if it has none.
+
+    Zero (unknown) and Unix-looking ``time_usec`` values are ignored.
+    """
+    tf = _time_field(rec.msgid)
+    if tf is None:
+        return None
+    off, code, scale = tf
+    size = struct.calcsize("<" + code)
+    pl = _payload(data, rec)
+    raw = pl[off : off + size]
+    if len(raw) < size:
+        raw = raw + bytes(size - len(raw))  # MAVLink 2 trailing-zero truncation
+    v = struct.unpack("<" + code, raw)[0]
+    if v == 0 or (scale == 1e-6 and v >= _UNIX_US):
+        return None
+    return v * scale, scale == 1e-3
+
+
+def reframe(original: bytes, msg) -> bytes:
+    """Re-frame a modified message with the original frame's header fields and a fresh CRC."""
+    v1 = original[0] == 0xFE
+    scratch = mav2.MAVLink(None)
+    msg.pack(scratch, force_mavlink1=True)  # full payload, extensions included
+    payload = bytes(msg.get_payload())
+    cls = mav2.mavlink_map[msg.get_msgId()]
+    if v1:
+        payload = payload[: original[1]]
+        header = bytes((0xFE, len(payload), original[2], original[3], original[4], original[5]))
+    else:
+        plen = len(payload)
+        while plen > 1 and payload[plen - 1] == 0:
+            plen -= 1
+        payload = payload[:plen]
+        header = bytes((0xFD, plen, original[2] & ~0x01, original[3], original[4], original[5], original[6],
+                        original[7], original[8], original[9]))
+    crc = mav2.x25crc(header[1:] + payload)
+    crc.accumulate(bytes((cls.crc_extra,)))
+    return header + payload + struct.pack("<H", crc.crc)
+
+
+# ---------------------------------------------------------------- injection
+
+
+@dataclass
+class _FaultState:
+    fault: Fault
+    index: int
+    boot: Optional[int]
+    rng: np.random.Generator
+    held: Dict[Tuple[int, str], float]
+    counters: Dict[int, int]
+    modified: int = 0
+    dropped: int = 0
+    first_recv_us: Optional[int] = None
+    last_recv_us: Optional[int] = None
+    first_vehicle_s: Optional[float] = None
+
+    def touch(self, rec: Record, vt: Optional[float]) -> None:
+        if self.first_recv_us is None:
+            self.first_recv_us = rec.recv_us
+            self.first_vehicle_s = vt
+        self.last_recv_us = rec.recv_us
+
+
+def _detect_vehicle(data: bytes, records: Sequence[Record], sysid: Optional[int]) -> Tuple[Optional[int], Optional[int]]:
+    """(system id, autopilot component id): the first HEARTBEAT of an autopilot
+    (autopilot != MAV_AUTOPILOT_INVALID, not a GCS/onboard/gimbal/ADS-B type),
+    else the busiest (sysid, compid)."""
+    counts: Dict[Tuple[int, int], int] = {}
+    for r in records:
+        if not r.is_frame or (sysid is not None and r.sysid != sysid):
+            continue
+        if r.msgid == ID_HEARTBEAT:
+            pl = _payload(data, r) + bytes(9)
+            # HEARTBEAT wire order: custom_mode u32, type u8, autopilot u8, ...
+            mav_type, autopilot = pl[4], pl[5]
+            if autopilot != 8 and mav_type not in (6, 18, 26, 27):
+                return r.sysid, r.compid
+        counts[(r.sysid, r.compid)] = counts.get((r.sysid, r.compid), 0) + 1
+    if not counts:
+        return sysid, None
+    return max(counts, key=counts.get)
+
+
+def _applies_to(fault: Fault, msgid: int) -> bool:
+    k = fault.kind
+    if fault.messages is not None:
+        cls = mav2.mavlink_map.get(msgid)
+        if cls is None or cls.msgname not in fault.messages:
+            return False
+    if k.startswith("gnss_"):
+        return msgid in GNSS_IDS
+    if k.startswith("rng_"):
+        return msgid in RNG_IDS
+    if k.startswith("baro_"):
+        return msgid in BARO_IDS
+    if k == "accel_bias_step":
+        return msgid in IMU_IDS
+    if k == "rate_drop":
+        return msgid != ID_HEARTBEAT
+    return False
+
+
+def inject_bytes(
+    data: bytes, faults: Sequence[Fault], sysid: Optional[int] = None
+) -> Tuple[bytes, dict]:
+    """Apply ``faults`` to tlog bytes. Returns (new bytes, report for the sidecar)."""
+    records = split_tlog(data)
+    n_frames = sum(1 for r in records if r.is_frame)
+    if n_frames == 0:
+        raise InputError("no MAVLink frames found: not a tlog")
+    target, target_comp = _detect_vehicle(data, records, sysid)
+    decoder = mav2.MAVLink(None)
+    decoder.robust_parsing = True
+    states = [
+        _FaultState(f, i, f.boot, np.random.default_rng([f.seed, i]), {}, {}) for i, f in enumerate(faults)
+    ]
+    reboots = [s for s in states if s.fault.kind == "reboot"]
+    # messages decoded even outside a window: attitude for accel faults, the
+    # rangefinder's max_distance, and the values a hold (freeze/stuck/no-fix) needs
+    watch = set()
+    for f in faults:
+        if f.kind == "accel_bias_step":
+            watch.add(ID_ATTITUDE)
+        if f.kind.startswith("rng_"):
+            watch.add(ID_DISTANCE_SENSOR)
+        if f.kind in ("baro_freeze", "rng_stuck", "gnss_dropout"):
+            watch.update(mid for mid in GNSS_IDS + RNG_IDS + BARO_IDS if _applies_to(f, mid))
+
+    out: List[bytes] = []
+    boot = 0
+    last_vt: Optional[float] = None
+    have_ms_clock = False
+    last_att = (0.0, 0.0)
+    last_rng_max_m: Optional[float] = None
+    originals: Dict[Tuple[int, str], float] = {}  # latest original value per (msgid, field), vehicle only
+    signed_stripped = 0
+    junk = 0
+
+    for rec in records:
+        raw = data[rec.start : rec.end]
+        ours = rec.is_frame and rec.sysid == target
+        vt = last_vt
+        if ours:
+            own = _vehicle_time_s(data, rec)
+            if own is not None:
+                own_vt, is_ms = own
+                clock_msg = rec.compid == target_comp and rec.msgid not in GNSS_IDS
+                if clock_msg and (is_ms or not have_ms_clock):
+                    # the autopilot's time_boot_ms: drives vehicle time and reboot detection
+                    if last_vt is not None and last_vt - own_vt > max(1.0, min(10.0, 0.5 * last_vt)):
+                        boot += 1
+                    last_vt = vt = own_vt
+                    have_ms_clock = have_ms_clock or is_ms
+                elif last_vt is not None and abs(own_vt - last_vt) < 1.0:
+                    vt = own_vt  # a sample time (time_usec) on the same clock
+        if not rec.is_frame:
+            junk += 1
+
+        # which faults are in their window for this record
+        active: List[_FaultState] = []
+        if vt is not None:
+            for st in states:
+                f = st.fault
+                if st.boot is None and vt >= f.onset_s:
+                    st.boot = boot
+                if st.boot == boot and f.onset_s <= vt < f.end_s:
+                    active.append(st)
+
+        # link loss / reboot: nothing arrives
+        drop = [st for st in active if st.fault.kind in ("link_loss", "reboot")]
+        if drop:
+            for st in drop:
+                st.touch(rec, vt)
+                st.dropped += 1
+            continue
+
+        if not ours:
+            out.append(raw)
+            continue
+
+        relevant = [st for st in active if _applies_to(st.fault, rec.msgid)]
+        shifting = [st for st in reboots if st.boot == boot and vt is not None and vt >= st.fault.end_s]
+        if not relevant and not shifting and rec.msgid not in watch:
+            out.append(raw)
+            continue
+
+        frame = raw[8:]
+        try:
+            msg = decoder.decode(bytearray(frame))
+        except Exception:  # a frame pymavlink refuses: keep it as it is
+            out.append(raw)
+            continue
+
+        if rec.msgid == ID_ATTITUDE:
+            last_att = (msg.roll, msg.pitch)
+        if rec.msgid == ID_DISTANCE_SENSOR and msg.orientation == 25:
+            last_rng_max_m = msg.max_distance / 100.0
+        before = {k: getattr(msg, k) for k in _HELD_FIELDS if hasattr(msg, k)}
+
+        dropped_here = False
+        changed = False
+        for st in relevant:
+            st.touch(rec, vt)
+            res = _apply(st.fault, st, msg, rec.msgid, vt, originals, last_att, last_rng_max_m)
+            if res == "drop":
+                dropped_here = True
+                st.dropped += 1
+                break
+            if res:
+                changed = True
+                st.modified += 1
+        for key, value in before.items():
+            originals[(rec.msgid, key)] = value
+        if dropped_here:
+            continue
+        for st in shifting:
+            shift = st.fault.onset_s
+            moved = False
+            if hasattr(msg, "time_boot_ms"):
+                msg.time_boot_ms = int(max(0, msg.time_boot_ms - round(shift * 1000)))
+                moved = True
+            if hasattr(msg, "time_usec") and msg.time_usec < _UNIX_US:
+                msg.time_usec = int(max(0, msg.time_usec - round(shift * 1e6)))
+                moved = True
+            if moved:
+                changed = True
+                st.modified += 1
+        if not changed:
+            out.append(raw)
+            continue
+        if rec.version == 2 and frame[2] & 0x01:
+            signed_stripped += 1
+        out.append(raw[:8] + reframe(frame, msg))
+
+    report = {
+        "generator": "mavnav inject",
+        "sysid": target,
+        "autopilot_compid": target_comp,
+        "records": len(records),
+        "frames": n_frames,
+        "junk_records": junk,
+        "boots_seen": boot + 1,
+        "signatures_stripped": signed_stripped,
+        "clock": "onset_s/end_s: the input log's vehicle clock (time_boot_ms / time_usec) in boot 'boot'",
+        "faults": [],
+    }
+    for st in states:
+        d = describe_fault(st.fault)
+        d.update(
+            boot=st.boot,
+            seed=st.fault.seed,
+            records_modified=st.modified,
+            records_dropped=st.dropped,
+            first_vehicle_s=st.first_vehicle_s,
+            first_recv_unix_s=None if st.first_recv_us is None else st.first_recv_us / 1e6,
+            last_recv_unix_s=None if st.last_recv_us is None else st.last_recv_us / 1e6,
+        )
+        report["faults"].append(d)
+    return b"".join(out), report
+
+
+_HELD_FIELDS = ("alt", "alt_ellipsoid", "lat", "lon", "current_distance", "signal_quality", "distance",
+                "press_abs", "abs_pressure", "pressure_alt")
+
+
+def _hold(st: _FaultState, originals, msgid: int, field: str, current):
+    key = (msgid, field)
+    if key not in st.held:
+        st.held[key] = originals.get(key, current)
+    return st.held[key]
+
+
+def _shift_pressure_hpa(p_hpa: float, dh_m: float) -> float:
+    if not p_hpa > 0:
+        return p_hpa
+    alt = height_from_pressure_m(p_hpa * 100.0, P0_PA)
+    return pressure_at_height_pa(alt + dh_m, P0_PA) / 100.0
+
+
+def _apply(f: Fault, st: _FaultState, msg, msgid: int, vt: float, originals, att, rng_max_m) -> object:
+    """Change ``msg`` in place for fault ``f``. Returns True if changed, "drop", or False."""
+    k = f.kind
+    if k == "rate_drop":
+        keep_every = max(1, int(round(1.0 / f.magnitude)))
+        c = st.counters.get(msgid, 0)
+        st.counters[msgid] = c + 1
+        return "drop" if c % keep_every else False
+    if k.startswith("gnss_"):
+        if k in ("gnss_step", "gnss_ramp", "gnss_noise"):
+            if k == "gnss_step":
+                dh = f.magnitude
+            elif k == "gnss_ramp":
+                dh = f.magnitude * (vt - f.onset_s)
+            else:
+                dh = f.magnitude * float(st.rng.standard_normal())
+            d_mm = int(round(dh * 1000))
+            msg.alt = int(msg.alt + d_mm)
+            if getattr(msg, "alt_ellipsoid", 0):
+                msg.alt_ellipsoid = int(msg.alt_ellipsoid + d_mm)
+            return True
+        if k == "gnss_dropout":
+            if f.effective_mode == "silent":
+                return "drop"
+            for fld in ("alt", "lat", "lon", "alt_ellipsoid"):
+                if hasattr(msg, fld):
+                    setattr(msg, fld, int(_hold(st, originals, msgid, fld, getattr(msg, fld))))
+            msg.fix_type = 1
+            msg.satellites_visible = min(3, msg.satellites_visible)
+            msg.eph, msg.epv = 9999, 9999
+            if hasattr(msg, "v_acc"):
+                msg.v_acc, msg.h_acc = 99999, 99999
+            return True
+    if k.startswith("rng_"):
+        if msgid == ID_DISTANCE_SENSOR:
+            if msg.orientation != 25:
+                return False
+            if k == "rng_dropout":
+                if f.effective_mode == "silent":
+                    return "drop"
+                msg.current_distance = min(65535, msg.max_distance + 1)
+                msg.signal_quality = 1
+            elif k == "rng_stuck":
+                if f.magnitude is None:
+                    msg.current_distance = int(_hold(st, originals, msgid, "current_distance", msg.current_distance))
+                    msg.signal_quality = int(_hold(st, originals, msgid, "signal_quality", msg.signal_quality))
+                else:
+                    msg.current_distance = int(min(65535, max(0, round(f.magnitude * 100))))
+            elif k == "rng_spikes":
+                if st.rng.random() >= f.effective_probability:
+                    return False
+                msg.current_distance = int(min(65535, max(0, msg.current_distance + round(f.magnitude * 100))))
+            elif k == "rng_out_of_range":
+                beyond = 1.0 if f.magnitude is None else f.magnitude
+                msg.current_distance = int(min(65535, msg.max_distance + round(beyond * 100)))
+            return True
+        # RANGEFINDER (ArduPilot), metres
+        if k == "rng_dropout":
+            if f.effective_mode == "silent":
+                return "drop"
+            msg.distance = (rng_max_m + 0.01) if rng_max_m is not None else 0.0
+        elif k == "rng_stuck":
+            msg.distance = _hold(st, originals, msgid, "distance", msg.distance) if f.magnitude is None else f.magnitude
+        elif k == "rng_spikes":
+            if st.rng.random() >= f.effective_probability:
+                return False
+            msg.distance = msg.distance + f.magnitude
+        elif k == "rng_out_of_range":
+            beyond = 1.0 if f.magnitude is None else f.magnitude
+            msg.distance = (rng_max_m if rng_max_m is not None else msg.distance) + beyond
+        return True
+    if k.startswith("baro_"):
+        if k == "baro_freeze":
+            if msgid == ID_HIGHRES_IMU:
+                msg.abs_pressure = _hold(st, originals, msgid, "abs_pressure", msg.abs_pressure)
+                msg.pressure_alt = _hold(st, originals, msgid, "pressure_alt", msg.pressure_alt)
+            else:
+                msg.press_abs = _hold(st, originals, msgid, "press_abs", msg.press_abs)
+            return True
+        dh = f.magnitude if k == "baro_step" else f.magnitude * (vt - f.onset_s)
+        if msgid == ID_HIGHRES_IMU:
+            if not msg.abs_pressure > 0:
+                return False
+            msg.abs_pressure = _shift_pressure_hpa(msg.abs_pressure, dh)
+            msg.pressure_alt = msg.pressure_alt + dh
+        else:
+            msg.press_abs = _shift_pressure_hpa(msg.press_abs, dh)
+        return True
+    if k == "accel_bias_step":
+        d = down_row_from_euler(att[0], att[1])
+        # f_up = -(down_row . f_b): adding -m * down_row to f_b adds m to f_up
+        dx, dy, dz = (-f.magnitude * c for c in d)
+        if msgid == ID_HIGHRES_IMU:
+            msg.xacc, msg.yacc, msg.zacc = msg.xacc + dx, msg.yacc + dy, msg.zacc + dz
+        else:
+            to_mg = 1000.0 / G_MILLI
+
+            def clip(v):
+                return int(max(-32768, min(32767, round(v))))
+
+            msg.xacc = clip(msg.xacc + dx * to_mg)
+            msg.yacc = clip(msg.yacc + dy * to_mg)
+            msg.zacc = clip(msg.zacc + dz * to_mg)
+        return True
+    return False
+
+
+def inject_file(in_path, out_path, faults: Sequence[Fault], sysid: Optional[int] = None) -> dict:
+    """Read a tlog, inject, write the result; returns the report (sidecar content)."""
+    try:
+        with open(in_path, "rb") as fh:
+            data = fh.read()
+    except FileNotFoundError:
+        raise InputError(f"{in_path}: no such file") from None
+    except OSError as exc:
+        raise InputError(f"{in_path}: cannot read ({exc.strerror})") from None
+    out, report = inject_bytes(data, faults, sysid)
+    with open(out_path, "wb") as fh:
+        fh.write(out)
+    report["input"] = str(in_path)
+    report["output"] = str(out_path)
+    return report
+
+
+__all__ = ["Record", "split_tlog", "reframe", "inject_bytes", "inject_file"]
