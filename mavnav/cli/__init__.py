@@ -32,3 +32,5 @@ def main() -> None:
 # Each command module registers itself on import.
 
 from . import covariance  # noqa: E402,F401
+from . import simulate  # noqa: E402,F401
+from . import inject  # noqa: E402,F401
