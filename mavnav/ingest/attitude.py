@@ -49,9 +49,13 @@ class AttitudeInterpolator:
 
     def resolve(self, now_us: Optional[int], flush: bool = False) -> List[Tuple[object, Optional[Quat], bool]]:
         """Pop resolvable pending items: ``(item, quat or None, used_nearest)``."""
-        out = []
         pend = self.pending
         ts = self._t
+        if pend and not flush and ts and now_us is not None:
+            t = pend[0][0]
+            if t > ts[-1] and now_us < t + self.wait_us:
+                return []  # fast path: still waiting for the next attitude
+        out = []
         while pend:
             t, item = pend[0]
             n = len(ts)

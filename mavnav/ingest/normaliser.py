@@ -148,6 +148,7 @@ class Normaliser:
             "gnss", cfg.gnss_reference, _item_t, _mean_alt, self._gnss_home_value
         )
         self._cand: Optional[tuple] = None
+        self._followers: List[tuple] = []
         self._last_recv: Optional[float] = None
         self._link_lost = False
         self._geoid_sep_m: Optional[float] = None
@@ -239,6 +240,7 @@ class Normaliser:
             ct, crecv, _fn, _f, _c = self._cand
             self._cand = None
             self._reject(crecv, "time_jump", "unconfirmed jump at end of stream", ct)
+            self._release_followers()
         self._flush_streams()
         for sel, fn in ((self.imu_sel, self._imu_selected), (self.range_sel, self._range_selected), (self.ap_sel, self._ap_selected)):
             for item in sel.decide():
@@ -297,6 +299,7 @@ class Normaliser:
                 cfn(cf, ct, crecv)
             else:
                 self._reject(crecv, "time_jump", f"vehicle time {ct} us against {clock.last_t_us} us", ct)
+            self._release_followers()
         if clock.classify(t_us, recv_s) == HOLD:
             self._cand = (t_us, recv_s, fn, f, compid)
             return
@@ -306,11 +309,22 @@ class Normaliser:
             self._resolve_attitude()
 
     def _stream_time(self, key, t_raw: int, recv_s: float, fn, f) -> None:
-        """A time that may be on another clock (``time_usec``, other components): see StreamClocks."""
+        """A time that may be on another clock (``time_usec``, other components): see StreamClocks.
+
+        While a clock jump is unconfirmed these wait for its verdict, so that
+        the samples right after a reboot land in the new boot."""
+        if self._cand is not None:
+            self._followers.append((key, t_raw, recv_s, fn, f))
+            return
         for t_us, (ffn, ff, frecv) in self.streams.map(key, t_raw, self.clock.estimate(recv_s), (fn, f, recv_s)):
             ffn(ff, t_us, frecv)
         if self.att.pending:
             self._resolve_attitude()
+
+    def _release_followers(self) -> None:
+        followers, self._followers = self._followers, []
+        for key, t_raw, recv_s, fn, f in followers:
+            self._stream_time(key, t_raw, recv_s, fn, f)
 
     def _flush_streams(self) -> None:
         for t_us, (ffn, ff, frecv) in self.streams.flush():
@@ -414,6 +428,8 @@ class Normaliser:
 
     def _imu_selected(self, item) -> None:
         self.stats.imu_source = self.imu_sel.chosen
+        if not self._admit("imu", item[0], item[1], item[2]):
+            return
         self.att.pending.append((item[0], item))
         self._resolve_attitude()
 
@@ -424,7 +440,7 @@ class Normaliser:
                 self._reject(recv_s, "no_attitude", f"{name}: no attitude within {self.cfg.attitude_max_age_s} s", t_us, boot)
                 continue
             f_up = f_up_from_body(fb, down_row_from_quat(q))
-            self._guarded("imu", t_us, recv_s, boot, SpecificForceUp(t_us, recv_s, boot, f_up, name))
+            self._yield("imu", SpecificForceUp(t_us, recv_s, boot, f_up, name))
 
     # ------------------------------------------------------------------ barometer
 
@@ -608,6 +624,8 @@ class Normaliser:
         if self._stuck(raw, t_us, boot):
             self._reject(recv_s, "stuck", f"{name} reads {range_m:.3f} m for {self.cfg.rangefinder_stuck_s} s while the baro moved", t_us, boot)
             return
+        if not self._admit("range", t_us, recv_s, boot):
+            return
         q = self.att.latest(t_us)
         if q is None:
             self._reject(recv_s, "no_attitude", f"{name}: no attitude for tilt correction", t_us, boot)
@@ -616,7 +634,7 @@ class Normaliser:
         if c < self._cos_max_tilt:
             self._reject(recv_s, "tilt", f"{name}: tilted {math.degrees(math.acos(max(-1.0, min(1.0, c)))):.0f} deg", t_us, boot)
             return
-        self._guarded("range", t_us, recv_s, boot, RangeHeight(t_us, recv_s, boot, range_m * c, range_m, name))
+        self._yield("range", RangeHeight(t_us, recv_s, boot, range_m * c, range_m, name))
 
     def _stuck(self, raw, t_us, boot) -> bool:
         run = self._run
@@ -696,16 +714,24 @@ class Normaliser:
 
     # ------------------------------------------------------------------ output
 
-    def _guarded(self, kind: str, t_us: int, recv_s: float, boot: int, sample) -> None:
+    def _admit(self, kind: str, t_us: int, recv_s: float, boot: int) -> bool:
+        """Strictly increasing time per (kind, boot); reports a gap before the item."""
         verdict, gap_s = self.guard.check(kind, boot, t_us)
         if verdict != "ok":
             self._reject(recv_s, verdict, f"{kind} at {t_us} us", t_us, boot)
-            return
+            return False
         if gap_s > 0.0:
             self.stats.gaps.append(GapRecord(kind, t_us, boot, gap_s))
             self._emit(Gap(t_us=t_us, recv_s=recv_s, boot=boot, kind=kind, length_s=gap_s))
+        return True
+
+    def _yield(self, kind: str, sample) -> None:
         self.stats.samples[kind] += 1
         self.out.append(sample)
+
+    def _guarded(self, kind: str, t_us: int, recv_s: float, boot: int, sample) -> None:
+        if self._admit(kind, t_us, recv_s, boot):
+            self._yield(kind, sample)
 
     def _emit(self, event) -> None:
         self.stats.events[type(event).__name__] += 1
