@@ -50,6 +50,9 @@ class GnssConfig(_Section):
 
 class RangefinderConfig(_Section):
     sigma_m: float = Field(0.1, gt=0)
+    # Height-proportional part of the noise (scale error, uneven ground): the
+    # sigma used is sqrt(sigma_m^2 + (scale_sigma_frac * height)^2).
+    scale_sigma_frac: float = Field(0.0, ge=0)
 
 
 class SensorsConfig(_Section):
@@ -145,12 +148,55 @@ class IngestConfig(_Section):
 # ---------------------------------------------------------------- monitor
 
 
+class AdaptiveFeatures(_Section):
+    """Each addition of the adaptive monitor over the paper, switchable."""
+
+    covariance_thresholds: bool = True  # thresholds k*sqrt(P_a + P_b - 2 P_ab), else the paper's fixed metres
+    innovation_gating: bool = True  # chi-square gate on each GNSS/rangefinder sample before it enters
+    window_test: bool = True  # sliding-window sum of normalised innovations (slow drifts)
+    isolation_2of3: bool = True  # blame baro+INS when GNSS and rangefinder agree against it
+    validated_feedback: bool = True  # feed back only channels validated over a window, rate-limited
+    readmission: bool = True  # readmit an excluded source after it has been consistent for readmit_s
+    inverse_variance: bool = True  # fuse by inverse (co)variance, else the arithmetic mean
+
+
 class MonitorConfig(_Section):
     mode: Literal["adaptive", "paper"] = "adaptive"
-    # Paper mode: fixed thresholds on |H_ch - H_baro| (MODEL.md section 5).
+    # Paper mode (and adaptive with covariance_thresholds off): fixed thresholds
+    # on |H_ch - H_baro| (MODEL.md section 5).
     delta_gnss_m: float = Field(10.0, gt=0)
     delta_ra_m: float = Field(5.0, gt=0)
     time_to_alarm_s: float = Field(1.0, gt=0)
+    features: AdaptiveFeatures = AdaptiveFeatures()
+    # Probability of a false alarm of one channel-comparison test (two-sided normal).
+    false_alarm_prob: float = Field(1e-5, gt=0, lt=0.5)
+    # Probability of rejecting a good GNSS/rangefinder sample (chi-square, 1 dof).
+    gate_prob: float = Field(1e-4, gt=0, lt=0.5)
+    # Sliding-window test of normalised innovations: length and two-sided level.
+    window_s: float = Field(5.0, gt=0)
+    window_prob: float = Field(1e-4, gt=0, lt=0.5)
+    window_min_samples: int = Field(10, ge=2)
+    # Rejected samples in the window before a source is in caution / alarm.
+    caution_rejections: int = Field(2, ge=1)
+    alarm_rejections: int = Field(4, ge=1)
+    # A disagreement must persist this long before it is an alarm (caution before).
+    persist_s: float = Field(0.2, ge=0)
+    # An excluded source is readmitted after this long consistent.
+    readmit_s: float = Field(5.0, gt=0)
+    # Feedback into the baro+INS channel from channels validated this long.
+    validate_s: float = Field(3.0, ge=0)
+    feedback_interval_s: float = Field(1.0, gt=0)
+    feedback_inflation: float = Field(4.0, ge=1.0)
+    # A source with no accepted sample for this long is unavailable (cf. EKF3).
+    stale_gnss_s: float = Field(2.0, gt=0)
+    stale_rng_s: float = Field(0.5, gt=0)
+    stale_baro_s: float = Field(0.5, gt=0)
+    # A channel whose height sigma exceeds this takes no part in comparisons.
+    max_channel_sigma_m: float = Field(5.0, gt=0)
+    # Integrity: vertical protection level k * sigma against the alert limit.
+    alert_limit_m: float = Field(4.0, gt=0)
+    integrity_risk: float = Field(1e-5, gt=0, lt=0.5)
+    profile: str = "small_drone"
 
 
 class Config(_Section):

@@ -23,6 +23,7 @@ Pure: no clock, no I/O. ``push(sample)`` returns the epochs it completed.
 
 from __future__ import annotations
 
+import math
 from collections import Counter, deque
 from dataclasses import dataclass
 from typing import Optional, Union
@@ -53,6 +54,7 @@ class EpochBuilder:
         self._max_latency_us = int(round(f.max_meas_latency_s * 1e6))
         self._gnss_cfg = cfg.sensors.gnss
         self._rng_sigma = cfg.sensors.rangefinder.sigma_m
+        self._rng_scale = cfg.sensors.rangefinder.scale_sigma_frac
         self.counters: Counter[str] = Counter()
         self.reset()
 
@@ -184,7 +186,9 @@ class EpochBuilder:
             else:
                 sigma = c.sigma_z_m
             return AuxMeasurement(height_m=s.height_ref_m, sigma_m=sigma, age_s=age_us * 1e-6)
-        return AuxMeasurement(height_m=s.height_agl_m, sigma_m=self._rng_sigma, age_s=age_us * 1e-6)
+        h = s.height_agl_m
+        sigma = math.hypot(self._rng_sigma, self._rng_scale * h) if self._rng_scale else self._rng_sigma
+        return AuxMeasurement(height_m=h, sigma_m=sigma, age_s=age_us * 1e-6)
 
     def _make(self, t_us: int, baro_m: Optional[float]) -> EpochInputs:
         dp, dv = self._integrate_to(t_us)
