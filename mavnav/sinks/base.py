@@ -1,0 +1,86 @@
+"""The sink protocol and the guard that keeps a failing sink from stopping the monitor."""
+
+from __future__ import annotations
+
+import logging
+from typing import Iterable
+
+from ..report import AlarmEvent, EpochReport, RunSummary
+
+log = logging.getLogger("mavnav.sinks")
+
+
+class Sink:
+    """Base sink: every hook is a no-op. Hooks are called in vehicle-time order.
+
+    * ``start(info)``: once, before any data; ``info`` is a plain dict
+      (``source`` description, ``mode``, ``config`` object, ``live`` flag).
+    * ``sample(s)``: every sample and event from the source
+      (:mod:`mavnav.samples` types), before the epochs it completes.
+    * ``epoch(report)``: every filter epoch.
+    * ``alarm(event)``: every change of a source's state.
+    * ``close(summary)``: once, at the end (also after an interruption).
+    """
+
+    name = "sink"
+
+    def start(self, info: dict) -> None:
+        pass
+
+    def sample(self, s) -> None:
+        pass
+
+    def epoch(self, report: EpochReport) -> None:
+        pass
+
+    def alarm(self, event: AlarmEvent) -> None:
+        pass
+
+    def close(self, summary: RunSummary) -> None:
+        pass
+
+
+class SinkSet:
+    """Calls every sink; a sink that raises is reported once and dropped."""
+
+    def __init__(self, sinks: Iterable[Sink], summary: RunSummary):
+        self._sinks = list(sinks)
+        self._summary = summary
+
+    @property
+    def active(self) -> list[Sink]:
+        return list(self._sinks)
+
+    def _call(self, hook: str, *args) -> None:
+        for sink in list(self._sinks):
+            try:
+                getattr(sink, hook)(*args)
+            except Exception as exc:  # a sink must never stop the monitor
+                self._drop(sink, hook, exc)
+
+    def _drop(self, sink: Sink, hook: str, exc: BaseException) -> None:
+        text = f"{type(exc).__name__}: {exc}"
+        self._summary.sink_failures[sink.name] = f"{hook}: {text}"
+        log.warning("sink %s failed in %s (%s); it is dropped, the monitor goes on", sink.name, hook, text)
+        if sink in self._sinks:
+            self._sinks.remove(sink)
+        if hook != "close":
+            try:
+                sink.close(self._summary)
+            except Exception:
+                pass
+
+    def start(self, info: dict) -> None:
+        self._call("start", info)
+
+    def sample(self, s) -> None:
+        self._call("sample", s)
+
+    def epoch(self, report: EpochReport) -> None:
+        self._call("epoch", report)
+
+    def alarm(self, event: AlarmEvent) -> None:
+        self._call("alarm", event)
+
+    def close(self) -> None:
+        self._call("close", self._summary)
