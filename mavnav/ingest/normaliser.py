@@ -215,7 +215,10 @@ class Normaliser:
         except Exception as exc:  # struct errors on a CRC-valid but malformed payload
             self._reject(recv_s, "malformed", f"{wire.msg_name(msgid)}: {exc}")
             return
-        self._handlers[msgid](fields, recv_s, compid)
+        try:
+            self._handlers[msgid](fields, recv_s, compid)
+        except Exception as exc:  # a bug must not stop a live monitor: counted, and tests require zero
+            self._reject(recv_s, "internal_error", f"{wire.msg_name(msgid)}: {type(exc).__name__}: {exc}")
 
     def problem(self, rejected: Rejected) -> None:
         """A frame-level problem reported by the reader (garbage, CRC, unknown id...)."""
@@ -458,8 +461,8 @@ class Normaliser:
         self._last_pressure_pa = p_pa
         run = self._run
         if run is not None:
-            run[2] = min(run[2], p_pa)
-            run[3] = max(run[3], p_pa)
+            run[2] = p_pa if run[2] is None else min(run[2], p_pa)
+            run[3] = p_pa if run[3] is None else max(run[3], p_pa)
         rel = self._rel_alt
         rel_m = rel[2] if rel is not None and abs(rel[0] - t_us) <= REL_ALT_MAX_AGE_US else None
         item = (t_us, recv_s, self.clock.boot, p_pa, rel_m)
