@@ -1,0 +1,111 @@
+"""Scenario files: examples load, bad files are refused by name, the CLI writes its outputs."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+from click.testing import CliRunner
+from pymavlink import mavutil
+
+from mavnav.cli import main
+from mavnav.config import SensorsConfig
+from mavnav.errors import ConfigError
+from mavnav.sim import load_scenario, read_truth_csv, scenario_from_dict
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIOS = sorted((ROOT / "config" / "scenarios").glob("*.yaml"))
+MIN = {"duration_s": 10, "trajectory": {"kind": "hover"}}
+
+
+def test_examples_exist_and_load():
+    assert len(SCENARIOS) >= 5
+    for p in SCENARIOS:
+        scn = load_scenario(p)
+        assert scn.name == p.stem
+
+
+def test_sensor_noise_names_mirror_the_filter_config():
+    filt = SensorsConfig().model_dump()
+    scn = scenario_from_dict(MIN).sensors.model_dump()
+    for section, keys in filt.items():
+        for key in ("sigma_a_mps2", "alpha_a_per_s", "sigma_bb_m", "gamma_bb_per_s", "sigma_z_m", "sigma_m"):
+            if key in keys:
+                assert key in scn[section], (section, key)
+
+
+def _write(tmp_path, data, name="s.yaml"):
+    p = tmp_path / name
+    p.write_text(yaml.safe_dump(data) if not isinstance(data, str) else data)
+    return p
+
+
+@pytest.mark.parametrize(
+    "data,needle",
+    [
+        (dict(MIN, durration_s=3), "unknown key 'durration_s'"),
+        (dict(MIN, sensors={"baro": {"sigma_bb": 1}}), "unknown key 'sensors.baro.sigma_bb'"),
+        (dict(MIN, trajectory={"kind": "hover", "hieght_m": 3}), "unknown key 'trajectory.hieght_m'"),
+        (dict(MIN, trajectory={"kind": "spiral"}), "trajectory"),
+        (dict(MIN, rates_hz={"HIGHRES_IMUU": 100}), "unknown key 'rates_hz.HIGHRES_IMUU'"),
+        (dict(MIN, rates_hz={"ATTITUDE": -1}), "rates_hz.ATTITUDE"),
+        (dict(MIN, faults=[{"kind": "gnss_jump", "onset_s": 1, "magnitude": 1}]), "faults[0].kind"),
+        (dict(MIN, faults=[{"kind": "gnss_step", "onset_s": 1}]), "gnss_step needs a magnitude"),
+        (dict(MIN, faults=[{"kind": "gnss_step", "onset_s": 1, "magnitude": 1, "probablity": 0.2}]),
+         "unknown key 'faults[0].probablity'"),
+        (dict(MIN, faults=[{"kind": "rng_dropout", "onset_s": 1, "mode": "nofix"}]), "rng_dropout mode must be one of"),
+        (dict(MIN, faults=[{"kind": "link_loss", "onset_s": 1}]), "link_loss needs a duration_s"),
+        (dict(MIN, faults=[{"kind": "rate_drop", "onset_s": 1, "magnitude": 2}]), "0 < m < 1"),
+        (dict(MIN, faults=[{"kind": "gnss_step", "onset_s": 1, "magnitude": 1, "messages": ["GPS_RAW_INT"]}]),
+         "only rate_drop takes messages"),
+        (dict(MIN, sensors={"rangefinder": {"min_m": 5, "max_m": 2}}), "max_m must exceed min_m"),
+        (dict(MIN, rates_hz={"HIGHRES_IMU": 0}), "no IMU message"),
+        ({"trajectory": {"kind": "hover"}}, "missing key 'duration_s'"),
+        ("duration_s: [1, 2\n", "not valid YAML at line"),
+        ("- 1\n- 2\n", "top level must be a mapping"),
+    ],
+)
+def test_bad_scenarios_are_refused_by_name(tmp_path, data, needle):
+    p = _write(tmp_path, data)
+    with pytest.raises(ConfigError) as exc:
+        load_scenario(p)
+    msg = str(exc.value)
+    assert needle in msg
+    assert "\n" not in msg and msg.startswith(str(p))
+
+
+def test_missing_scenario_file(tmp_path):
+    with pytest.raises(ConfigError, match="no such scenario file"):
+        load_scenario(tmp_path / "nope.yaml")
+
+
+def test_cli_simulate_writes_tlog_truth_and_sidecar(tmp_path):
+    scn = _write(tmp_path, dict(MIN, faults=[{"kind": "gnss_step", "onset_s": 4, "duration_s": 2, "magnitude": 5}]))
+    out, truth = tmp_path / "o.tlog", tmp_path / "o.csv"
+    r = CliRunner().invoke(main, ["simulate", str(scn), "-o", str(out), "--truth", str(truth), "--seed", "3"])
+    assert r.exit_code == 0, r.output
+    conn = mavutil.mavlink_connection(str(out))
+    types = set()
+    while (m := conn.recv_msg()) is not None:
+        types.add(m.get_type())
+    conn.close()
+    assert {"HIGHRES_IMU", "GPS_RAW_INT", "SCALED_PRESSURE", "DISTANCE_SENSOR", "HEARTBEAT"} <= types
+    t = read_truth_csv(truth)
+    assert list(t)[:5] == ["t_s", "boot", "t_sim_s", "true_height_ref_m", "true_alt_msl_m"]
+    side = json.loads((tmp_path / "o.faults.json").read_text())
+    assert side["seed"] == 3 and side["faults"][0]["kind"] == "gnss_step"
+    assert side["faults"][0]["onset_s"] == 4 and side["faults"][0]["end_s"] == 6
+    # the same command again gives the same bytes
+    first = out.read_bytes()
+    CliRunner().invoke(main, ["simulate", str(scn), "-o", str(out), "--seed", "3"])
+    assert out.read_bytes() == first
+
+
+def test_cli_simulate_bad_file_is_one_line(tmp_path):
+    scn = _write(tmp_path, dict(MIN, colour="red"))
+    r = CliRunner().invoke(main, ["simulate", str(scn), "-o", str(tmp_path / "o.tlog")])
+    assert r.exit_code == 2
+    assert "unknown key 'colour'" in r.output
+    assert not (tmp_path / "o.tlog").exists()
