@@ -70,6 +70,15 @@ class LiveSource:
         self._reader = StreamReader(WANTED)
         self._norm = Normaliser(self.config, sysid, self.stats)
 
+    @property
+    def local_address(self):
+        """``(host, port)`` the link is bound to (sockets only; ``udpin:HOST:0`` picks a free port)."""
+        port = getattr(self._conn, "port", None)
+        try:
+            return port.getsockname()
+        except Exception:
+            return None
+
     def close(self) -> None:
         """Stop iterating (promptly, from any thread) and release the port."""
         if not self._closed.is_set():
