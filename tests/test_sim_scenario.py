@@ -109,3 +109,20 @@ def test_cli_simulate_bad_file_is_one_line(tmp_path):
     assert r.exit_code == 2
     assert "unknown key 'colour'" in r.output
     assert not (tmp_path / "o.tlog").exists()
+
+
+SITL = ROOT / "sitl_logs"
+SITL_NAMES = sorted(p.name[: -len(".tlog")] for p in SITL.glob("*.tlog"))
+
+
+def test_committed_sitl_logs_match_their_scenarios():
+    """Golden files: the committed logs are exactly what their scenarios generate."""
+    from mavnav.sim import simulate
+
+    assert len(SITL_NAMES) >= 5
+    for name in SITL_NAMES:
+        res = simulate(load_scenario(ROOT / "config" / "scenarios" / f"{name}.yaml"))
+        assert res.tlog == (SITL / f"{name}.tlog").read_bytes(), f"{name}: run sitl_logs/regenerate.sh"
+        truth = read_truth_csv(SITL / f"{name}.truth.csv")
+        assert len(truth["t_s"]) == len(res.truth["t_s"])
+        assert abs(truth["true_height_ref_m"] - res.truth["true_height_ref_m"]).max() < 1e-5
