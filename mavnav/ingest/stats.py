@@ -41,7 +41,9 @@ class IngestStats:
     downward, other baro instance...); ``messages`` and ``rates_hz``: per
     message type from the selected vehicle, rates over vehicle time;
     ``ignored_by_sysid``: frames from other systems (ground stations,
-    other vehicles, radios).
+    other vehicles, radios). Counters grow while the source is iterated;
+    ``messages``, ``rates_hz``, ``ignored_by_sysid``, ``frames`` and
+    ``duration_s`` are filled when it ends (or a live source is closed).
     """
 
     source: str = ""

@@ -101,10 +101,6 @@ def parse_frame(buf, p: int, n: int) -> FrameHead:
     return (OK, flen, msgid, sysid, compid, p + hl)
 
 
-def payload_len(buf, p: int) -> int:
-    return buf[p + 1]
-
-
 Decoder = Callable[[bytes], Dict[str, object]]
 
 
