@@ -126,3 +126,16 @@ def test_committed_sitl_logs_match_their_scenarios():
         truth = read_truth_csv(SITL / f"{name}.truth.csv")
         assert len(truth["t_s"]) == len(res.truth["t_s"])
         assert abs(truth["true_height_ref_m"] - res.truth["true_height_ref_m"]).max() < 1e-5
+
+
+def test_filter_sensors_carry_the_scenario_noise():
+    scn = scenario_from_dict(dict(MIN, sensors={"ins": {"sigma_a_mps2": 0.07, "alpha_a_per_s": 3.0},
+                                                "baro": {"sigma_bb_m": 0.4, "gamma_bb_per_s": 2.0},
+                                                "gnss": {"sigma_z_m": 0.6, "correlated_sigma_m": 0.8},
+                                                "rangefinder": {"sigma_m": 0.03}}))
+    f = scn.filter_sensors()
+    assert isinstance(f, SensorsConfig)
+    assert (f.ins.sigma_a_mps2, f.ins.alpha_a_per_s) == (0.07, 3.0)
+    assert (f.baro.sigma_bb_m, f.baro.gamma_bb_per_s) == (0.4, 2.0)
+    assert f.gnss.sigma_z_m == pytest.approx(1.0)
+    assert f.rangefinder.sigma_m == 0.03

@@ -18,6 +18,7 @@ receive time). Sensor models: docs/MODEL.md sections 2-4 with its errata.
 """
 
 from .faults import FAULT_SYNTAX_HELP, parse_fault, sidecar_path
+from .inject import inject_bytes, inject_file
 from .scenario import FAULT_MAGNITUDE, FAULT_SOURCE, Fault, Scenario, load_scenario, scenario_from_dict
 from .simulate import SimResult, Truth, read_truth_csv, simulate
 
@@ -29,6 +30,8 @@ __all__ = [
     "Scenario",
     "SimResult",
     "Truth",
+    "inject_bytes",
+    "inject_file",
     "load_scenario",
     "parse_fault",
     "read_truth_csv",

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import json
 import math
-from typing import Iterable, List, Optional, Sequence
+from typing import List, Sequence
 
 import numpy as np
 from pydantic import ValidationError
@@ -151,6 +151,4 @@ __all__ = [
     "active_labels",
     "write_sidecar",
     "sidecar_path",
-    "Optional",
-    "Iterable",
 ]

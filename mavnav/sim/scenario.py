@@ -15,12 +15,20 @@ Times are *scenario time*: seconds of the first boot's vehicle clock
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Dict, List, Literal, Optional, Tuple, Union
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from ..config import (
+    BaroConfig,
+    GnssConfig,
+    InsConfig,
+    RangefinderConfig,
+    SensorsConfig,
+)
 from ..errors import ConfigError
 
 
@@ -422,6 +430,22 @@ class Scenario(_Section):
         if not any(rates[m] > 0 for m in ("HIGHRES_IMU", "RAW_IMU", "SCALED_IMU", "SCALED_IMU2")):
             raise ValueError("rates_hz: no IMU message is sent")
         return self
+
+    def filter_sensors(self) -> SensorsConfig:
+        """The filter's noise parameters matching this scenario's sensors.
+
+        GNSS: ``sigma_z_m`` is the total (white and correlated) vertical error,
+        the same number the simulated receiver reports as ``v_acc``.
+        """
+        s = self.sensors
+        g = s.gnss
+        sigma_z = g.v_acc_m if g.v_acc_m is not None else math.hypot(g.sigma_z_m, g.correlated_sigma_m)
+        return SensorsConfig(
+            ins=InsConfig(sigma_a_mps2=max(s.ins.sigma_a_mps2, 1e-6), alpha_a_per_s=s.ins.alpha_a_per_s),
+            baro=BaroConfig(sigma_bb_m=max(s.baro.sigma_bb_m, 1e-6), gamma_bb_per_s=s.baro.gamma_bb_per_s),
+            gnss=GnssConfig(sigma_z_m=max(sigma_z, 1e-6)),
+            rangefinder=RangefinderConfig(sigma_m=max(s.rangefinder.sigma_m, 1e-6)),
+        )
 
     def rates(self) -> Dict[str, float]:
         """Every message type's rate in Hz (0: not sent), profile defaults filled in."""

@@ -105,6 +105,9 @@ class SimResult:
     trajectory: TruthTrajectory
     clock: Clock
     timings_s: Dict[str, float] = field(default_factory=dict)
+    # sensor series before message selection: "baro" (t_sim, height_m, noise_m, pressure_pa),
+    # "rangefinder" (t_sim, range_m, quality, slant_true_m)
+    series: Dict[str, dict] = field(default_factory=dict)
 
     def sidecar(self) -> dict:
         return {
@@ -300,6 +303,7 @@ def simulate(scenario: Scenario, seed: Optional[int] = None, *, encode: bool = T
         )
 
     # ---- rangefinder: samples at DISTANCE_SENSOR times (else RANGEFINDER's)
+    rng_series: dict = {}
     rng_primary = "DISTANCE_SENSOR" if "DISTANCE_SENSOR" in streams else ("RANGEFINDER" if "RANGEFINDER" in streams else None)
     if rng_primary is not None:
         rf = sens.rangefinder
@@ -473,6 +477,7 @@ def simulate(scenario: Scenario, seed: Optional[int] = None, *, encode: bool = T
             "total": t_end - t_start,
             "records": float(n_rec),
         },
+        series={"baro": baro, "rangefinder": rng_series},
     )
 
 
