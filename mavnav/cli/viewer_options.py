@@ -1,0 +1,339 @@
+"""Rerun viewer options for the run, replay and audit commands.
+
+``@viewer_options`` adds::
+
+    --viewer [spawn|web|none]  spawn a native viewer, serve a web viewer, or none (default)
+    --connect URL              also stream to a running viewer (rerun+http://HOST:PORT/proxy, or a port)
+    --rrd FILE                 also save the recording to FILE
+    --web-port / --grpc-port   ports of the web viewer and of its data (gRPC) server;
+                               --grpc-port is also the spawned viewer's port
+    --viewer-bind ADDR         address they listen on (default 127.0.0.1)
+    --viewer-window SECONDS    live runs: the views show the last SECONDS of vehicle time
+    --viewer-hold/--no-viewer-hold
+                               web viewer: keep serving after the run until Ctrl-C (default)
+
+and the command passes them on::
+
+    sinks += make_viewer_sinks(viewer, connect, rrd, live=..., web_port=web_port, grpc_port=grpc_port,
+                               viewer_bind=viewer_bind, viewer_window=viewer_window, viewer_hold=viewer_hold)
+
+Web mode runs ``rerun --serve-web`` (from rerun-sdk) as a child process that
+hosts both the viewer page and its data, bound to ``--viewer-bind``; the page
+URL is printed on stderr. The child is stopped when mavnav exits (after
+Ctrl-C when held). A spawned native viewer is the user's window: it is left
+running. Viewer trouble (cannot start, goes away) is reported and never
+stops the monitor.
+"""
+
+from __future__ import annotations
+
+import atexit
+import functools
+import logging
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Callable, Optional
+from urllib.parse import quote, urlsplit
+
+import click
+
+from ..errors import MavnavError
+
+log = logging.getLogger("mavnav.cli.viewer")
+
+VIEWERS = ("spawn", "web", "none")
+DEFAULT_WEB_PORT = 9090
+DEFAULT_GRPC_PORT = 9876
+START_TIMEOUT_S = 15.0
+
+
+def viewer_options(f: Callable) -> Callable:
+    """Add the Rerun viewer options to a click command."""
+    options = [
+        click.option("--viewer", type=click.Choice(VIEWERS), default="none", show_default=True,
+                     help="Show the run in Rerun: spawn a native viewer, or serve a web viewer."),
+        click.option("--connect", "connect", metavar="URL", default=None,
+                     help="Also stream to a running Rerun viewer or server (rerun+http://HOST:PORT/proxy, or a port)."),
+        click.option("--rrd", "rrd", type=click.Path(dir_okay=False, writable=True), default=None,
+                     help="Also save the Rerun recording to this .rrd file."),
+        click.option("--web-port", type=click.IntRange(0, 65535), default=DEFAULT_WEB_PORT, show_default=True,
+                     help="Port of the web viewer page (--viewer web; 0: any free port)."),
+        click.option("--grpc-port", type=click.IntRange(0, 65535), default=DEFAULT_GRPC_PORT, show_default=True,
+                     help="Port of the viewer's data server (--viewer web or spawn; 0: any free port)."),
+        click.option("--viewer-bind", default="127.0.0.1", show_default=True, metavar="ADDR",
+                     help="Address the web viewer and its data server listen on."),
+        click.option("--viewer-window", type=click.FloatRange(min=0.0, min_open=True), default=30.0,
+                     show_default=True, metavar="SECONDS",
+                     help="Live runs: seconds of vehicle time the views show, up to the cursor."),
+        click.option("--viewer-hold/--no-viewer-hold", default=True, show_default=True,
+                     help="--viewer web: keep serving after the run ends, until Ctrl-C."),
+    ]
+    for option in reversed(options):
+        f = option(f)
+    return f
+
+
+# --------------------------------------------------------------------------
+# Helpers
+
+
+def rerun_executable() -> str:
+    """The ``rerun`` program installed with rerun-sdk (beside this Python first)."""
+    here = Path(sys.executable).parent / "rerun"
+    if here.exists():
+        return str(here)
+    found = shutil.which("rerun")
+    if found is None:
+        raise MavnavError("the 'rerun' program of rerun-sdk is not installed")
+    return found
+
+
+def port_open(host: str, port: int, timeout_s: float = 0.3) -> bool:
+    """Whether something accepts TCP connections at host:port."""
+    try:
+        with socket.create_connection((_connect_host(host), port), timeout=timeout_s):
+            return True
+    except OSError:
+        return False
+
+
+def _connect_host(host: str) -> str:
+    return "127.0.0.1" if host in ("0.0.0.0", "") else ("::1" if host == "::" else host)
+
+
+def free_port(host: str = "127.0.0.1") -> int:
+    with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as s:
+        s.bind((host, 0))
+        return int(s.getsockname()[1])
+
+
+def grpc_url(connect: str) -> tuple[str, str, int]:
+    """Normalise ``--connect``: a port, HOST:PORT, or a rerun URL -> (url, host, port)."""
+    text = connect.strip()
+    if text.isdigit():
+        text = f"rerun+http://127.0.0.1:{int(text)}/proxy"
+    elif "://" not in text:
+        text = f"rerun+http://{text}/proxy"
+    parts = urlsplit(text)
+    if parts.scheme not in ("rerun", "rerun+http", "rerun+https") or parts.path != "/proxy" or not parts.hostname:
+        raise MavnavError(f"--connect {connect!r}: expected rerun+http://HOST:PORT/proxy or a port")
+    try:
+        port = parts.port
+    except ValueError:
+        raise MavnavError(f"--connect {connect!r}: bad port") from None
+    if port is None:
+        port = 443 if parts.scheme == "rerun+https" else DEFAULT_GRPC_PORT
+    return text, parts.hostname, port
+
+
+def web_page_url(host: str, web_port: int, data_url: str) -> str:
+    """The page to open: the web viewer, told where its data is (WebGL renderer)."""
+    return f"http://{_connect_host(host)}:{web_port}/?renderer=webgl&url={quote(data_url, safe='')}"
+
+
+def _tcp_check(host: str, port: int) -> Callable[[], Optional[str]]:
+    def check() -> Optional[str]:
+        return None if port_open(host, port) else f"nothing listens on {host}:{port} any more"
+
+    return check
+
+
+class ViewerProcess:
+    """A ``rerun`` child process (web server or native viewer) and its ports."""
+
+    def __init__(self, args: list[str], host: str, ports: tuple[int, ...]):
+        self._log = tempfile.NamedTemporaryFile(prefix="mavnav-rerun-", suffix=".log", delete=False)
+        self.args = args
+        self.host, self.ports = host, ports
+        self.port = ports[0]  # the data (gRPC) port
+        self.proc = subprocess.Popen(
+            args,
+            stdin=subprocess.DEVNULL,
+            stdout=self._log,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,  # Ctrl-C in the terminal reaches mavnav, which stops us in order
+        )
+
+    def wait_ready(self, timeout_s: float = START_TIMEOUT_S) -> Optional[str]:
+        """None once the port accepts connections, else why not."""
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end:
+            if self.proc.poll() is not None:
+                return f"the viewer exited with status {self.proc.returncode}: {self.tail()}"
+            if all(port_open(self.host, p, 0.2) for p in self.ports):
+                return None
+            time.sleep(0.1)
+        return f"the viewer did not listen on ports {self.ports} within {timeout_s:.0f} s"
+
+    def tail(self, n: int = 2) -> str:
+        try:
+            lines = Path(self._log.name).read_text(errors="replace").strip().splitlines()
+        except OSError:
+            return ""
+        return " | ".join(line.strip() for line in lines[-n:])
+
+    def check(self) -> Optional[str]:
+        code = self.proc.poll()
+        if code is not None:
+            return f"the viewer process exited with status {code}"
+        if not port_open(self.host, self.port):
+            return f"nothing listens on {self.host}:{self.port} any more"
+        return None
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.terminate()
+            try:
+                self.proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        try:
+            self._log.close()
+            os.unlink(self._log.name)
+        except OSError:
+            pass
+
+
+def _hold(url: str, process: ViewerProcess, echo: Callable[[str], None]) -> None:
+    """At exit: keep the web viewer serving until Ctrl-C (only on a terminal)."""
+    if process.proc.poll() is not None:
+        return
+    if not sys.stdin or not sys.stdin.isatty():
+        echo("mavnav: not waiting for the web viewer (no terminal); it stops now")
+        return
+    echo(f"mavnav: the run is over; the web viewer keeps serving at {url} - press Ctrl-C to stop it")
+    try:
+        while process.proc.poll() is None:
+            time.sleep(0.5)
+    except KeyboardInterrupt:
+        pass
+
+
+# --------------------------------------------------------------------------
+# The factory
+
+
+def _echo_err(text: str) -> None:
+    click.echo(text, err=True)
+
+
+def make_viewer_sinks(
+    viewer: str = "none",
+    connect: Optional[str] = None,
+    rrd: Optional[str] = None,
+    live: bool = False,
+    *,
+    web_port: int = DEFAULT_WEB_PORT,
+    grpc_port: int = DEFAULT_GRPC_PORT,
+    viewer_bind: str = "127.0.0.1",
+    viewer_window: float = 30.0,
+    viewer_hold: bool = True,
+    echo: Callable[[str], None] = _echo_err,
+    application_id: str = "mavnav",
+) -> list:
+    """The sinks the viewer options ask for: ``[]`` or one :class:`RerunSink`.
+
+    ``live`` picks row-by-row logging and a cursor-relative time window;
+    replays send columns in bulk. Messages for the user (the web viewer's
+    URL, a viewer that cannot start) go to ``echo`` (stderr by default).
+    The returned sink has ``.page_url`` (web mode, else None) and
+    ``.processes`` (the rerun children it started).
+    """
+    import rerun as rr
+    import uuid
+
+    from ..sinks.rerun_sink import RerunSink, ViewerTarget
+
+    if viewer not in VIEWERS:
+        raise MavnavError(f"--viewer {viewer!r}: expected one of {', '.join(VIEWERS)}")
+    if viewer == "none" and not connect and not rrd:
+        return []
+
+    rr_sinks: list = []
+    targets: list[ViewerTarget] = []
+    processes: list[ViewerProcess] = []
+    on_close: list[Callable[[], None]] = []
+    page_url: Optional[str] = None
+    grpc_urls: set[str] = set()
+
+    def pick(port: int, what: str) -> int:
+        if port == 0:
+            return free_port(viewer_bind)
+        if port_open(viewer_bind, port):
+            chosen = free_port(viewer_bind)
+            echo(f"mavnav: port {port} ({what}) is busy; using {chosen}")
+            return chosen
+        return port
+
+    if viewer == "web":
+        gport = pick(grpc_port, "viewer data")
+        wport = pick(web_port, "web viewer")
+        args = [rerun_executable(), "--serve-web", "--bind", viewer_bind, "--port", str(gport),
+                "--web-viewer-port", str(wport)]
+        process = ViewerProcess(args, viewer_bind, (gport, wport))
+        why = process.wait_ready()
+        if why is not None:
+            process.stop()
+            echo(f"mavnav: warning: the web viewer could not start ({why}); going on without it")
+        else:
+            data_url = f"rerun+http://{_connect_host(viewer_bind)}:{gport}/proxy"
+            page_url = web_page_url(viewer_bind, wport, data_url)
+            processes.append(process)
+            rr_sinks.append(rr.GrpcSink(data_url))
+            grpc_urls.add(data_url)
+            targets.append(ViewerTarget(f"the web viewer ({page_url})", process.check))
+            atexit.register(process.stop)
+            if viewer_hold:
+                # registered after stop(): atexit runs it first
+                on_close.append(lambda: atexit.register(_hold, page_url, process, echo))
+            echo(f"mavnav: Rerun web viewer at {page_url}")
+    elif viewer == "spawn":
+        gport = DEFAULT_GRPC_PORT if grpc_port == 0 else grpc_port
+        data_url = f"rerun+http://{_connect_host(viewer_bind)}:{gport}/proxy"
+        why: Optional[str] = None
+        if not port_open(viewer_bind, gport):  # else: reuse the viewer already there, like rerun does
+            args = [rerun_executable(), "--bind", viewer_bind, "--port", str(gport), "--memory-limit", "75%"]
+            process = ViewerProcess(args, viewer_bind, (gport,))
+            why = process.wait_ready()
+            if why is not None:
+                process.stop()
+        if why is not None:
+            echo(f"mavnav: warning: the Rerun viewer could not start ({why}); going on without it")
+        else:
+            rr_sinks.append(rr.GrpcSink(data_url))
+            grpc_urls.add(data_url)
+            targets.append(ViewerTarget(f"the Rerun viewer at {data_url}", _tcp_check(viewer_bind, gport)))
+    if connect:
+        url, host, port = grpc_url(connect)
+        if url not in grpc_urls:
+            rr_sinks.append(rr.GrpcSink(url))
+            targets.append(ViewerTarget(f"the Rerun viewer at {url}", _tcp_check(host, port)))
+    if rrd:
+        rr_sinks.append(rr.FileSink(str(rrd)))
+    if not rr_sinks:
+        return []
+
+    rec = rr.RecordingStream(application_id, recording_id=uuid.uuid4())
+    rec.set_sinks(*rr_sinks)
+    sink = RerunSink(
+        rec,
+        live=live,
+        window_s=viewer_window,
+        targets=targets,
+        has_file=bool(rrd),
+        on_close=on_close,
+    )
+    sink.page_url = page_url  # type: ignore[attr-defined]
+    sink.processes = processes  # type: ignore[attr-defined]
+    return [sink]
+
+
+__all__ = ["viewer_options", "make_viewer_sinks", "grpc_url", "web_page_url", "port_open", "free_port",
+           "rerun_executable", "ViewerProcess"]

@@ -1,0 +1,527 @@
+"""Rerun viewer sink: every height, residual, threshold and alarm on one
+vehicle-time axis, live during a flight or scrubbing through a log.
+
+The sink writes to an explicit :class:`rerun.RecordingStream` that the CLI
+edge (:mod:`mavnav.cli.viewer_options`) has connected to its targets (a
+spawned viewer, a web viewer, a running viewer, an ``.rrd`` file); it never
+touches Rerun's global recording. What goes where is listed in
+:mod:`mavnav.sinks.rerun_blueprint`.
+
+Time. One timeline, ``vehicle_time`` (a duration, nanosecond exact), from
+the reports' and samples' vehicle time. Vehicle time restarts at a reboot;
+so that one axis stays monotonic, boot ``k > 0`` is shifted to continue from
+the last vehicle time of boot ``k - 1`` (``vehicle_time = t_s + offset_k``,
+``offset_0 = 0``); each reboot is a line in ``input/events`` giving the
+offset. Events without a vehicle time (link loss, rejected frames) are placed
+at the latest vehicle time seen.
+
+Two ways of sending. Live runs log rows as they come (``log`` with
+``set_time``), so the viewer follows the flight. Replays buffer columns and
+send them with ``send_columns`` in large batches and at close; the recording
+holds the same values either way.
+
+Failures. Logging never stops the monitor. Rerun itself does not raise on a
+viewer that goes away, so the sink checks its viewers (at most once a
+second of wall clock) and reports a lost one once, as a warning; it keeps
+writing to an ``.rrd`` if there is one, and stops logging when nothing is
+left to write to. A programming error in the sink raises, and
+:class:`~mavnav.sinks.base.SinkSet` drops the sink; the monitor's results
+never depend on this sink.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import re
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Optional, Sequence
+
+import numpy as np
+import rerun as rr
+
+from ..report import SOURCES, AlarmEvent, EpochReport, RunSummary
+from ..samples import (
+    AutopilotHeight,
+    BaroHeight,
+    Gap,
+    GnssHeight,
+    LinkLost,
+    LinkRecovered,
+    RangeHeight,
+    Reboot,
+    ReferenceSet,
+    Rejected,
+)
+from . import rerun_blueprint as bp
+from .base import Sink
+
+log = logging.getLogger("mavnav.sinks.rerun")
+
+NS_PER_US = 1000
+NS_PER_S = 1_000_000_000
+
+
+# --------------------------------------------------------------------------
+# Vehicle time across reboots
+
+
+class BootClock:
+    """Maps (boot, vehicle time) to one monotonic ``vehicle_time`` in ns.
+
+    Boot 0 is unshifted. A later boot continues from the last time seen in
+    the boot before it (or the ``last_t_us`` a :class:`Reboot` reports).
+    """
+
+    def __init__(self) -> None:
+        self.offset_ns: dict[int, int] = {}
+        self._last_raw_ns: dict[int, int] = {}
+        self.now_ns = 0  # latest vehicle_time seen
+
+    def reboot(self, boot: int, first_t_us: int, last_t_us: int) -> int:
+        prev = boot - 1
+        if prev in self.offset_ns:
+            self._last_raw_ns[prev] = max(self._last_raw_ns.get(prev, 0), last_t_us * NS_PER_US)
+        return self._offset(boot, first_t_us * NS_PER_US)
+
+    def _offset(self, boot: int, raw_ns: int) -> int:
+        off = self.offset_ns.get(boot)
+        if off is None:
+            earlier = [b for b in self.offset_ns if b < boot]
+            if not earlier:
+                off = 0
+            else:
+                prev = max(earlier)
+                end_prev = self.offset_ns[prev] + self._last_raw_ns.get(prev, 0)
+                off = max(0, end_prev - raw_ns)
+            self.offset_ns[boot] = off
+        return off
+
+    def ns(self, boot: Optional[int], t_us: Optional[int]) -> int:
+        if t_us is None or boot is None:
+            return self.now_ns
+        raw = int(t_us) * NS_PER_US
+        ns = self._offset(int(boot), raw) + raw
+        if raw > self._last_raw_ns.get(boot, -1):
+            self._last_raw_ns[boot] = raw
+        if ns > self.now_ns:
+            self.now_ns = ns
+        return ns
+
+
+# --------------------------------------------------------------------------
+# Writers: rows (live) or buffered columns (replay)
+
+
+class _RowWriter:
+    """Logs every row at once (live)."""
+
+    def __init__(self, rec: rr.RecordingStream):
+        self.rec = rec
+
+    def _at(self, ns: int) -> None:
+        self.rec.set_time(bp.TIMELINE, duration=np.timedelta64(int(ns), "ns"))
+
+    def scalars(self, entity: str, ns: int, values: Sequence[float]) -> None:
+        self._at(ns)
+        self.rec.log(entity, rr.Scalars(np.asarray(values, dtype=np.float64)))
+
+    def text(self, entity: str, ns: int, text: str, level: str, colour) -> None:
+        self._at(ns)
+        self.rec.log(entity, rr.TextLog(text, level=level, color=colour))
+
+    def state(self, entity: str, ns: int, state: str) -> None:
+        self._at(ns)
+        self.rec.log(entity, rr.StateChange(state=[state]))
+
+    def pending(self) -> int:
+        return 0
+
+    def flush(self) -> None:
+        pass
+
+
+@dataclass
+class _Column:
+    times: list = field(default_factory=list)
+    values: list = field(default_factory=list)
+    extra: list = field(default_factory=list)  # text: (level, colour)
+
+
+class _ColumnWriter:
+    """Buffers rows per entity and sends them with ``send_columns`` (replay)."""
+
+    def __init__(self, rec: rr.RecordingStream, batch_rows: int):
+        self.rec = rec
+        self.batch_rows = batch_rows
+        self._scalars: dict[str, _Column] = {}
+        self._texts: dict[str, _Column] = {}
+        self._states: dict[str, _Column] = {}
+        self._n = 0
+
+    def _add(self, table: dict, entity: str, ns: int, value, extra=None) -> None:
+        col = table.get(entity)
+        if col is None:
+            col = table[entity] = _Column()
+        col.times.append(ns)
+        col.values.append(value)
+        if extra is not None:
+            col.extra.append(extra)
+        self._n += 1
+        if self._n >= self.batch_rows:
+            self.flush()
+
+    def scalars(self, entity: str, ns: int, values: Sequence[float]) -> None:
+        self._add(self._scalars, entity, ns, tuple(values))
+
+    def text(self, entity: str, ns: int, text: str, level: str, colour) -> None:
+        self._add(self._texts, entity, ns, text, (level, colour))
+
+    def state(self, entity: str, ns: int, state: str) -> None:
+        self._add(self._states, entity, ns, state)
+
+    def pending(self) -> int:
+        return self._n
+
+    @staticmethod
+    def _index(col: _Column) -> list:
+        return [rr.TimeColumn(bp.TIMELINE, duration=np.asarray(col.times, dtype=np.int64).astype("timedelta64[ns]"))]
+
+    def flush(self) -> None:
+        scalars, texts, states = self._scalars, self._texts, self._states
+        self._scalars, self._texts, self._states, self._n = {}, {}, {}, 0
+        for entity, col in scalars.items():
+            values = np.asarray(col.values, dtype=np.float64)
+            self.rec.send_columns(entity, indexes=self._index(col), columns=rr.Scalars.columns(scalars=values))
+        for entity, col in texts.items():
+            levels = [lv for lv, _ in col.extra]
+            colours = np.asarray([c for _, c in col.extra], dtype=np.uint8)
+            self.rec.send_columns(
+                entity,
+                indexes=self._index(col),
+                columns=rr.TextLog.columns(text=col.values, level=levels, color=colours),
+            )
+        for entity, col in states.items():
+            self.rec.send_columns(entity, indexes=self._index(col), columns=rr.StateChange.columns(state=col.values))
+
+
+# --------------------------------------------------------------------------
+# Input health: rates per second of vehicle time, rejected counts
+
+
+class _Rates:
+    """Counts samples per kind in whole seconds of vehicle time.
+
+    A second is closed when any sample reaches a later one; every kind seen
+    so far then gets a rate, 0 when it was silent. The last, partial second
+    is not reported.
+    """
+
+    MAX_EMPTY_BINS = 600  # a longer jump reports one zero and resumes
+
+    def __init__(self) -> None:
+        self.bin: Optional[int] = None
+        self.counts: dict[str, int] = {}
+
+    def observe(self, kind: str, ns: int, emit: Callable[[str, int, float], None]) -> None:
+        b = ns // NS_PER_S
+        if self.bin is None:
+            self.bin = b
+        if b > self.bin:
+            jump = b - self.bin
+            self._close(emit)
+            if jump > 1:
+                # silent seconds: every kind at 0
+                for k in range(1, min(jump, self.MAX_EMPTY_BINS)):
+                    for kind_seen in self.counts:
+                        emit(kind_seen, (self.bin + k + 1) * NS_PER_S, 0.0)
+            self.bin = b
+        self.counts[kind] = self.counts.get(kind, 0) + 1
+
+    def _close(self, emit) -> None:
+        end_ns = (self.bin + 1) * NS_PER_S
+        for kind, n in self.counts.items():
+            emit(kind, end_ns, float(n))
+            self.counts[kind] = 0
+
+
+_SAFE = re.compile(r"[^A-Za-z0-9_\-]")
+
+
+def _part(text: str) -> str:
+    return _SAFE.sub("_", str(text)) or "_"
+
+
+# --------------------------------------------------------------------------
+# The sink
+
+
+HealthCheck = Callable[[], Optional[str]]  # None while fine, else why it is gone
+
+
+@dataclass
+class ViewerTarget:
+    """A place the recording goes that can go away (a viewer, a gRPC server)."""
+
+    description: str
+    check: HealthCheck
+    lost: Optional[str] = None
+
+
+class RerunSink(Sink):
+    """Logs epochs, alarms and input events to a Rerun recording.
+
+    ``rec`` must already have its sinks set (file, gRPC); ``targets`` are the
+    viewers to watch; ``has_file`` says an ``.rrd`` is being written (logging
+    goes on after every viewer is lost). ``on_close`` callbacks run after the
+    recording is flushed and disconnected (e.g. keep a web viewer serving).
+    """
+
+    name = "rerun"
+
+    def __init__(
+        self,
+        rec: rr.RecordingStream,
+        *,
+        live: bool,
+        window_s: float = 30.0,
+        batch_rows: int = 200_000,
+        targets: Sequence[ViewerTarget] = (),
+        has_file: bool = False,
+        check_interval_s: float = 1.0,
+        flush_timeout_s: float = 10.0,
+        on_close: Sequence[Callable[[], None]] = (),
+    ):
+        self.rec = rec
+        self.live = live
+        self.window_s = window_s
+        self.targets = list(targets)
+        self.has_file = has_file
+        self.check_interval_s = check_interval_s
+        self.flush_timeout_s = flush_timeout_s
+        self.on_close = list(on_close)
+        self.clock = BootClock()
+        self.writer = _RowWriter(rec) if live else _ColumnWriter(rec, batch_rows)
+        self.enabled = True
+        self._styled: set[str] = set()
+        self._states: dict[str, str] = {}
+        self._rates = _Rates()
+        self._rejected: dict[str, int] = {}
+        self._next_check = 0.0
+        self._closed = False
+
+    # -- setup -------------------------------------------------------------
+
+    def start(self, info: dict) -> None:
+        rec = self.rec
+        rec.set_log_tick_enabled(False)
+        rec.set_log_time_enabled(False)
+        source = info.get("source")
+        if source:
+            rec.send_recording_name(f"mavnav: {source}")
+        rec.send_blueprint(bp.blueprint(self.live, self.window_s), make_active=True, make_default=True)
+        for entity, archetype in bp.series_styles():
+            self._style(entity, archetype)
+        self._check_targets(force=True)
+
+    def _style(self, entity: str, archetype) -> None:
+        if entity not in self._styled:
+            self._styled.add(entity)
+            self.rec.log(entity, archetype, static=True)
+
+    # -- viewer health -----------------------------------------------------
+
+    def _check_targets(self, force: bool = False) -> None:
+        now = time.monotonic()
+        if not force and now < self._next_check:
+            return
+        self._next_check = now + self.check_interval_s
+        for target in self.targets:
+            if target.lost is not None:
+                continue
+            try:
+                why = target.check()
+            except Exception as exc:  # a broken probe counts as a lost viewer
+                why = f"{type(exc).__name__}: {exc}"
+            if why is not None:
+                target.lost = why
+                log.warning(
+                    "rerun: %s is gone (%s) at vehicle time %.3f s; the monitor goes on without it%s",
+                    target.description,
+                    why,
+                    self.clock.now_ns / NS_PER_S,
+                    " (the .rrd file is still written)" if self.has_file else "",
+                )
+        if self.targets and not self.has_file and all(t.lost for t in self.targets):
+            self.enabled = False
+
+    @property
+    def lost(self) -> list[str]:
+        """Descriptions of the viewers that went away."""
+        return [t.description for t in self.targets if t.lost is not None]
+
+    # -- hooks -------------------------------------------------------------
+
+    def sample(self, s) -> None:
+        if not self.enabled:
+            return
+        w = self.writer
+        if isinstance(s, Reboot):
+            offset = self.clock.reboot(s.boot, s.t_us, s.last_t_us)
+            ns = self.clock.ns(s.boot, s.t_us)
+            w.text(
+                "input/events",
+                ns,
+                f"reboot: boot {s.boot} begins at vehicle time {s.t_us * 1e-6:.3f} s "
+                f"(previous boot ended at {s.last_t_us * 1e-6:.3f} s); plotted shifted by {offset / NS_PER_S:+.3f} s",
+                "WARN",
+                bp.STATE_COLOURS["caution"],
+            )
+            return
+        if isinstance(s, (LinkLost, LinkRecovered)):
+            ns = self.clock.now_ns
+            if isinstance(s, LinkLost):
+                w.text("input/events", ns, f"link lost: silent for {s.silent_s:.1f} s", "ERROR", bp.STATE_COLOURS["alarm"])
+            else:
+                w.text("input/events", ns, f"link recovered after {s.outage_s:.1f} s", "INFO", bp.STATE_COLOURS["nominal"])
+            return
+        if isinstance(s, Rejected):
+            ns = self.clock.ns(s.boot, s.t_us)
+            kind = _part(s.kind)
+            n = self._rejected[kind] = self._rejected.get(kind, 0) + 1
+            self._style(*bp.input_styles("rejected", kind))
+            w.scalars(f"input/rejected/{kind}", ns, (float(n),))
+            return
+        t_us = getattr(s, "t_us", None)
+        boot = getattr(s, "boot", None)
+        ns = self.clock.ns(boot, t_us)
+        if isinstance(s, Gap):
+            kind = _part(s.kind)
+            self._style(*bp.input_styles("gaps", kind))
+            w.scalars(f"input/gaps/{kind}", ns, (float(s.length_s),))
+            w.text("input/events", ns, f"gap: no {s.kind} for {s.length_s:.2f} s", "WARN", bp.STATE_COLOURS["caution"])
+            return
+        if isinstance(s, ReferenceSet):
+            w.text(
+                "input/events",
+                ns,
+                f"reference set: {s.kind} = {s.value:.3f} ({s.origin})",
+                "INFO",
+                bp.STATE_COLOURS["nominal"],
+            )
+            return
+        kind = bp.RATE_KINDS.get(type(s).__name__)
+        if kind is not None:
+            self._rates.observe(kind, ns, self._emit_rate)
+        if isinstance(s, BaroHeight):
+            entity = "heights/raw/baro"
+            if s.instance not in (0, 1):
+                entity = f"heights/raw/baro{int(s.instance)}"
+                self._style(entity, rr.SeriesPoints(colors=[bp.CHANNEL_COLOURS["baro"]], names=[f"baro {s.instance} (raw)"]))
+            w.scalars(entity, ns, (s.height_ref_m,))
+        elif isinstance(s, GnssHeight):
+            w.scalars("heights/raw/gnss", ns, (s.height_ref_m,))
+        elif isinstance(s, RangeHeight):
+            w.scalars("heights/raw/rangefinder", ns, (s.height_agl_m,))
+        elif isinstance(s, AutopilotHeight):
+            w.scalars("heights/autopilot", ns, (s.height_ref_m,))
+        self._check_targets()
+
+    def _emit_rate(self, kind: str, ns: int, rate: float) -> None:
+        self._style(*bp.input_styles("rate", kind))
+        self.writer.scalars(f"input/rate/{kind}", ns, (rate,))
+
+    def epoch(self, report: EpochReport) -> None:
+        if not self.enabled:
+            return
+        ns = self.clock.ns(report.boot, report.t_us)
+        for entity, values in epoch_rows(report):
+            self.writer.scalars(entity, ns, values)
+        for entity, state in epoch_states(report):
+            if self._states.get(entity) != state:
+                self._states[entity] = state
+                self.writer.state(entity, ns, state)
+        self._check_targets()
+
+    def alarm(self, event: AlarmEvent) -> None:
+        if not self.enabled:
+            return
+        ns = self.clock.ns(event.boot, event.t_us)
+        self.writer.text(
+            "alarms",
+            ns,
+            alarm_text(event),
+            bp.STATE_LEVELS.get(event.state, "WARN"),
+            bp.STATE_COLOURS.get(event.state, (199, 199, 199)),
+        )
+
+    def close(self, summary: RunSummary) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            if self.enabled:
+                self.writer.flush()
+            self._check_targets(force=True)
+            try:
+                self.rec.flush(timeout_sec=self.flush_timeout_s)
+            except Exception as exc:  # a viewer that does not take the data in time
+                log.warning("rerun: could not flush the recording in %.0f s (%s)", self.flush_timeout_s, exc)
+            self.rec.disconnect()
+        finally:
+            for callback in self.on_close:
+                try:
+                    callback()
+                except Exception as exc:
+                    log.warning("rerun: after close: %s: %s", type(exc).__name__, exc)
+
+
+# --------------------------------------------------------------------------
+# What one epoch shows (pure functions)
+
+
+def _f(x) -> float:
+    return float(x) if x is not None else math.nan
+
+
+def epoch_rows(r: EpochReport) -> list[tuple[str, tuple[float, ...]]]:
+    """Scalar rows of one epoch: (entity, values)."""
+    rows: list[tuple[str, tuple[float, ...]]] = []
+    for ch in r.channels:
+        rows.append((bp.channel_entity(ch.name), (_f(ch.height_ref_m),)))
+        rows.append((f"integrity/nis/{ch.name}", (_f(ch.nis) if ch.dof > 0 else math.nan,)))
+        rows.append((f"integrity/norm_innov/{ch.name}", (_f(ch.norm_innov_baro), _f(ch.norm_innov_aux))))
+    h, s = _f(r.height_fused_m), _f(r.sigma_fused_m)
+    rows.append(("heights/fused", (h,)))
+    rows.append(("heights/fused_sigma", (h - s, h + s)))
+    for p in r.pairs:
+        rows.append((bp.pair_entity(p.name, "diff"), (_f(p.diff_m),)))
+        rows.append((bp.pair_entity(p.name, "threshold"), (_f(p.threshold_m), -_f(p.threshold_m))))
+    for src in SOURCES:
+        st = r.sources.get(src)
+        if st is None:
+            continue
+        w = (_f(st.window_stat), _f(st.window_low), _f(st.window_high))
+        if not all(math.isnan(v) for v in w):
+            rows.append((f"integrity/window/{src}", w))
+    rows.append(("integrity/vpl", (_f(r.vpl_m),)))
+    rows.append(("integrity/alert_limit", (_f(r.alert_limit_m),)))
+    return rows
+
+
+def epoch_states(r: EpochReport) -> list[tuple[str, str]]:
+    """State lanes of one epoch: (entity, state); the sink logs changes only."""
+    out = [(f"state/source/{src}", r.sources[src].state) for src in SOURCES if src in r.sources]
+    out.append(("state/overall", r.overall))
+    for ch in r.channels:
+        out.append((f"state/channel/{ch.name}", "used" if ch.used else ("available" if ch.available else "unavailable")))
+    return out
+
+
+def alarm_text(e: AlarmEvent) -> str:
+    text = f"{e.source}: {e.previous} -> {e.state}"
+    return f"{text}: {e.reason}" if e.reason else text
+
+
+__all__ = ["RerunSink", "ViewerTarget", "BootClock", "epoch_rows", "epoch_states", "alarm_text"]
