@@ -62,6 +62,7 @@ def _write(tmp_path, data, name="s.yaml"):
          "only rate_drop takes messages"),
         (dict(MIN, sensors={"rangefinder": {"min_m": 5, "max_m": 2}}), "max_m must exceed min_m"),
         (dict(MIN, rates_hz={"HIGHRES_IMU": 0}), "no IMU message"),
+        (dict(MIN, faults=[{"kind": "baro_freeze", "onset_s": 10}]), "faults[0].onset_s is after the scenario ends"),
         ({"trajectory": {"kind": "hover"}}, "missing key 'duration_s'"),
         ("duration_s: [1, 2\n", "not valid YAML at line"),
         ("- 1\n- 2\n", "top level must be a mapping"),

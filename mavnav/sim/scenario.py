@@ -426,6 +426,8 @@ class Scenario(_Section):
                 raise ValueError(f"faults[{i}].boot: only for inject")
             if f.onset_s < self.boot_time_at_start_s:
                 raise ValueError(f"faults[{i}].onset_s is before the scenario starts")
+            if f.onset_s >= self.boot_time_at_start_s + self.duration_s:
+                raise ValueError(f"faults[{i}].onset_s is after the scenario ends")
         rates = self.rates()
         if not any(rates[m] > 0 for m in ("HIGHRES_IMU", "RAW_IMU", "SCALED_IMU", "SCALED_IMU2")):
             raise ValueError("rates_hz: no IMU message is sent")
