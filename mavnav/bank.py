@@ -44,13 +44,15 @@ ROW_BARO, ROW_AUX = 0, 1
 
 @njit(cache=True, fastmath=False)
 def bank_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da,
-                has_baro, xi_new, phi_u, gamma_u2,
+                has_baro, baro_on, xi_new, phi_u, gamma_u2,
                 aux_on, aux_z, aux_var, aux_age,
                 inn, sdiag, s12_out, nis_out, dof_out, K, Fy, Hr, rb):  # pragma: no cover - compiled
     """Advance every channel by one epoch, in place.
 
-    Per channel ``c``: rows are the baro row (when ``has_baro`` and
-    ``baro_prev[c]`` is finite) and the aux row (when ``aux_on[c]``).
+    Per channel ``c``: rows are the baro row (when ``has_baro``,
+    ``baro_on[c]`` and ``baro_prev[c]`` is finite) and the aux row (when
+    ``aux_on[c]``). A channel with ``baro_on[c]`` false runs without the baro
+    and restarts its differencing when it is switched back on.
     Outputs: ``inn[c] = (baro, aux)`` innovations, ``sdiag[c]`` their
     variances (NaN when unused), ``s12_out[c]`` their covariance,
     ``nis_out[c]`` = r^T S^-1 r and ``dof_out[c]`` the number of rows.
@@ -87,7 +89,7 @@ def bank_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da,
         q23 = p23
         q33 = p33 + q_da
         # rows
-        use_b = has_baro and not math.isnan(baro_prev[c])
+        use_b = has_baro and baro_on[c] and not math.isnan(baro_prev[c])
         use_a = aux_on[c]
         inn[c, 0] = math.nan; inn[c, 1] = math.nan
         sdiag[c, 0] = math.nan; sdiag[c, 1] = math.nan
@@ -132,7 +134,7 @@ def bank_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da,
                 Hr[c, 0, 0] = 1.0; Hr[c, 0, 1] = -aux_age[c]
         if nr == 2:
             Hr[c, 1, 0] = 1.0; Hr[c, 1, 1] = -aux_age[c]
-        if has_baro:
+        if has_baro and baro_on[c]:
             baro_prev[c] = xi_new
         else:
             baro_prev[c] = math.nan
@@ -336,6 +338,8 @@ class ChannelBank:
         self._Hr = np.zeros((N_CH, 2, N_STATES))
         self._rb = np.zeros((N_CH, 2), dtype=np.bool_)
         self._pairs = np.array(PAIRS, dtype=np.int64)
+        # which channels use the baro (all, unless the monitor excludes it)
+        self.baro_on = np.ones(N_CH, dtype=np.bool_)
         # cross-covariances cov(e_a, e_b) for the pairs in PAIRS
         self.Pc = np.zeros((len(PAIRS), N_STATES, N_STATES))
 
@@ -371,6 +375,36 @@ class ChannelBank:
             if c in (i, j):
                 self.Pc[p] = 0.0  # a fresh prior: independent of the others' errors
 
+    def reinit_from(self, c: int, src: int) -> None:
+        """Re-initialise channel ``c`` as a copy of channel ``src`` (state,
+        covariance and cross-covariances: exact, the copy's error is the
+        source's). Used to readmit a channel mid-flight, where the prior of
+        the start would be far from the truth."""
+        self.x[c] = self.x[src]
+        self.P[c] = self.P[src]
+        self.baro_prev[c] = self.baro_prev[src]
+        for j in range(N_CH):
+            if j != c:
+                self._set_cross(c, j, self.P[src].copy() if j == src else self.cross(src, j).copy())
+
+    def predicted_baro(self, c: int, ep: EpochInputs) -> tuple[float, float]:
+        """Innovation and variance the differenced baro row would have in channel
+        ``c`` at ``ep`` (NaN if the channel has no previous baro sample)."""
+        prev = self.baro_prev[c]
+        if ep.baro_m is None or math.isnan(prev) or ep.baro_restart:
+            return math.nan, math.nan
+        m = self.model
+        T = ep.dt_s
+        g0, _ = self._g(T)
+        phi_u = math.exp(-m.gamma_bb_per_s * T)
+        a = 1.0 - phi_u
+        f = np.array([a, T, a, -0.5 * T * T])
+        y = ep.baro_m - phi_u * prev - ep.dp_m
+        r = y - float(f @ self.x[c])
+        q_dh = m.baro_bias_rw_m_per_sqrt_s**2 * T
+        S = float(f @ self.P[c] @ f) + g0 * g0 + m.sigma_bb_m**2 * (1.0 - phi_u * phi_u) + q_dh
+        return r, S
+
     def channel_state(self, c: int) -> ChannelState:
         prev = self.baro_prev[c]
         return ChannelState(x=self.x[c].copy(), P=self.P[c].copy(), t_us=self.t_us or 0,
@@ -380,15 +414,37 @@ class ChannelBank:
         self.x[c] = x
         self.P[c] = 0.5 * (P + P.T)
 
-    def step(self, ep: EpochInputs) -> BankStep:
-        _check_finite(ep)
+    def _g(self, T: float) -> tuple[float, float]:
         m = self.model
-        T = ep.dt_s
         if self._printed:
             q = m.sigma_a_mps2 * math.sqrt(2.0 * T / m.alpha_a_per_s)
         else:
             q = m.sigma_a_mps2 * math.sqrt(2.0 / (m.alpha_a_per_s * T))
-        g0, g1 = -0.5 * T * T * q, -T * q
+        return -0.5 * T * T * q, -T * q
+
+    def predicted_aux(self, c: int, ep: EpochInputs, aux) -> tuple[float, float]:
+        """Innovation and its variance that ``aux`` would have in channel ``c``
+        at epoch ``ep``, before it enters (for the chi-square gate)."""
+        T = ep.dt_s
+        g0, g1 = self._g(T)
+        age = aux.age_s
+        x = self.x[c]
+        P = self.P[c]
+        f0, f1, f3 = 1.0, T - age, -0.5 * T * T + age * T
+        y = aux.height_m - (ep.dp_m - age * ep.dv_mps)
+        r = y - (f0 * x[0] + f1 * x[1] + f3 * x[3])
+        u0 = P[0, 0] * f0 + P[0, 1] * f1 + P[0, 3] * f3
+        u1 = P[1, 0] * f0 + P[1, 1] * f1 + P[1, 3] * f3
+        u3 = P[3, 0] * f0 + P[3, 1] * f1 + P[3, 3] * f3
+        gh = g0 - age * g1
+        S = f0 * u0 + f1 * u1 + f3 * u3 + gh * gh + aux.sigma_m * aux.sigma_m
+        return float(r), float(S)
+
+    def step(self, ep: EpochInputs) -> BankStep:
+        _check_finite(ep)
+        m = self.model
+        T = ep.dt_s
+        g0, g1 = self._g(T)
         q_dh = m.baro_bias_rw_m_per_sqrt_s**2 * T
         q_da = m.acc_bias_rw_mps2_per_sqrt_s**2 * T
         has_baro = ep.baro_m is not None
@@ -406,7 +462,7 @@ class ChannelBank:
                 self._aux_var[c] = a.sigma_m * a.sigma_m
                 self._aux_age[c] = a.age_s
         bank_kernel(self.x, self.P, self.baro_prev, T, ep.dp_m, ep.dv_mps, g0, g1, q_dh, q_da,
-                    has_baro, ep.baro_m if has_baro else 0.0, phi_u, gamma_u2,
+                    has_baro, self.baro_on, ep.baro_m if has_baro else 0.0, phi_u, gamma_u2,
                     aux_on, self._aux_z, self._aux_var, self._aux_age,
                     self._inn, self._sdiag, self._s12, self._nis, self._dof,
                     self._K, self._Fy, self._Hr, self._rb)
@@ -416,6 +472,59 @@ class ChannelBank:
         self.t_us = ep.t_us
         return BankStep(ep.t_us, self._inn.copy(), self._sdiag.copy(), self._s12.copy(),
                         self._nis.copy(), self._dof.copy())
+
+    def _set_cross(self, a: int, b: int, M: np.ndarray) -> None:
+        for p, (i, j) in enumerate(PAIRS):
+            if (i, j) == (a, b):
+                self.Pc[p] = M
+                return
+            if (i, j) == (b, a):
+                self.Pc[p] = M.T
+                return
+        raise ValueError((a, b))
+
+    def fused_from(self, sources: list[int], weights: np.ndarray) -> tuple[float, float]:
+        """Height and error variance of ``sum w_i H_i`` over ``sources``."""
+        h = float(sum(w * self.x[i, 0] for i, w in zip(sources, weights)))
+        var = 0.0
+        for i, wi in zip(sources, weights):
+            for j, wj in zip(sources, weights):
+                var += wi * wj * self.cross(i, j)[0, 0]
+        return h, var
+
+    def feedback(self, target: int, sources: list[int], weights: np.ndarray, shift_m: float = 0.0,
+                 inflation: float = 1.0) -> float:
+        """Correct channel ``target`` towards the combination ``sum w_i H_i`` of
+        other channels (plus ``shift_m``), keeping every covariance exact.
+
+        The gain uses the combination's variance times ``inflation`` (a weak,
+        deliberately sub-optimal correction); the covariance update is the
+        Joseph form for that gain with the true variance and the target's
+        correlation with the sources, and the cross-covariances with every
+        other channel follow. Returns the height correction applied.
+        """
+        h_f, var_f = self.fused_from(sources, weights)
+        h_f += shift_m
+        P = self.P[target]
+        # cov(e_target, e_f) and cov(e_f, e_j) for every channel j
+        c_tf = sum(w * self.cross(target, i)[:, 0] for i, w in zip(sources, weights))
+        s = P[0, 0] + inflation * var_f
+        k = P[:, 0] / s
+        A = np.eye(N_STATES)
+        A[:, 0] -= k
+        dx = k * (h_f - self.x[target, 0])
+        Pn = A @ P @ A.T + var_f * np.outer(k, k) + A @ np.outer(c_tf, k) + np.outer(k, c_tf) @ A.T
+        new_cross = {}
+        for j in range(N_CH):
+            if j == target:
+                continue
+            c_fj = sum(w * self.cross(i, j)[0, :] for i, w in zip(sources, weights))
+            new_cross[j] = A @ self.cross(target, j) + np.outer(k, c_fj)
+        self.x[target] += dx
+        self.P[target] = 0.5 * (Pn + Pn.T)
+        for j, M in new_cross.items():
+            self._set_cross(target, j, M)
+        return float(dx[0])
 
     def height_fix(self, c: int, height_m: float, var_m2: float) -> None:
         """Correct channel ``c`` with an independent measurement of H (feedback)."""

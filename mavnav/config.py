@@ -176,6 +176,11 @@ class MonitorConfig(_Section):
     window_s: float = Field(5.0, gt=0)
     window_prob: float = Field(1e-4, gt=0, lt=0.5)
     window_min_samples: int = Field(10, ge=2)
+    # A single baro sample this improbable (chi-square, 1 dof) is a baro jump:
+    # an alarm at once, so the level is far stricter than gate_prob.
+    baro_jump_prob: float = Field(1e-8, gt=0, lt=0.5)
+    # A source in caution returns to nominal only after this long clean.
+    clear_s: float = Field(1.0, ge=0)
     # Rejected samples in the window before a source is in caution / alarm.
     caution_rejections: int = Field(2, ge=1)
     alarm_rejections: int = Field(4, ge=1)

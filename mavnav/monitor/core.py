@@ -1,0 +1,236 @@
+"""The integrity monitor: samples in, epoch reports and alarm events out.
+
+:class:`Monitor` owns the epoch builder, the channel bank and one decision
+logic (:mod:`.paper` or :mod:`.adaptive`). ``push(sample)`` is a pure step of
+the fold: time comes only from the samples, nothing is read or written.
+
+Besides the channels, the monitor watches the telemetry itself (source
+``input``): link loss, and whether each input's rate supports the
+time-to-alarm (an input too slow is reported, with the rate it would need).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter, deque
+from typing import Optional
+
+from ..bank import ChannelBank
+from ..channel import EpochInputs, Model
+from ..config import Config
+from ..epochs import EpochBuilder, EpochStart
+from ..report import CHANNEL_NAMES, AlarmEvent, ChannelReport, EpochReport
+from ..samples import (
+    AutopilotHeight,
+    BaroHeight,
+    GnssHeight,
+    LinkLost,
+    LinkRecovered,
+    RangeHeight,
+    Reboot,
+    SpecificForceUp,
+)
+from .levels import normal_k
+from .tracker import SourceTracker
+
+_RATE_WINDOW_US = 5_000_000
+
+
+class RateMeter:
+    """Samples per second of vehicle time over a sliding window."""
+
+    def __init__(self) -> None:
+        self._q: deque[int] = deque()
+
+    def push(self, t_us: int) -> None:
+        self._q.append(t_us)
+        while self._q and self._q[0] <= t_us - _RATE_WINDOW_US:
+            self._q.popleft()
+
+    def rate_hz(self, now_us: int) -> float:
+        """Rate while the input is flowing; 0 when it has gone silent (a gap
+        or a dropout is the channels' business, not a slow input)."""
+        q = self._q
+        while q and q[0] <= now_us - _RATE_WINDOW_US:
+            q.popleft()
+        if len(q) < 3:
+            return 0.0
+        span = q[-1] - q[0]
+        rate = (len(q) - 1) / (span * 1e-6) if span > 0 else 0.0
+        if rate <= 0.0 or (now_us - q[-1]) * 1e-6 > 2.5 / rate:
+            return 0.0
+        return rate
+
+    def clear(self) -> None:
+        self._q.clear()
+
+
+class Monitor:
+    """Three channels and their integrity control, as a pure fold over samples."""
+
+    def __init__(self, cfg: Config):
+        self.cfg = cfg
+        self.mcfg = cfg.monitor
+        self.model = Model.from_config(cfg)
+        self.counters: Counter[str] = Counter()
+        self.k_vpl = normal_k(self.mcfg.integrity_risk)
+        self.boot = 0
+        self._reset()
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def _reset(self) -> None:
+        from .adaptive import AdaptiveLogic
+        from .paper import PaperLogic
+
+        self.builder = EpochBuilder(self.cfg)
+        self.bank = ChannelBank(self.model)
+        logic_cls = PaperLogic if self.mcfg.mode == "paper" else AdaptiveLogic
+        self.logic = logic_cls(self.cfg, self.bank)
+        self.raw = {"baro": math.nan, "gnss": math.nan, "rng": math.nan, "ap": math.nan}
+        self.rates = {k: RateMeter() for k in ("imu", "baro", "gnss", "rng")}
+        self.input = None  # SourceTracker, created at the first epoch
+        self._link_lost = False
+        self._pending: list[AlarmEvent] = []
+        self._last_t_us: Optional[int] = None
+
+    # ------------------------------------------------------------------ fold
+
+    def push(self, s) -> list[tuple[EpochReport, list[AlarmEvent]]]:
+        """Consume one sample or event; return the epochs it completed."""
+        if isinstance(s, SpecificForceUp):
+            self.rates["imu"].push(s.t_us)
+        elif isinstance(s, BaroHeight):
+            self.raw["baro"] = s.height_ref_m
+            self.rates["baro"].push(s.t_us)
+        elif isinstance(s, GnssHeight):
+            self.raw["gnss"] = s.height_ref_m
+            self.rates["gnss"].push(s.t_us)
+        elif isinstance(s, RangeHeight):
+            self.raw["rng"] = s.height_agl_m
+            self.rates["rng"].push(s.t_us)
+        elif isinstance(s, AutopilotHeight):
+            self.raw["ap"] = s.height_ref_m
+        elif isinstance(s, Reboot):
+            self.counters["reboots"] += 1
+            self._on_reboot(s)
+            return []
+        elif isinstance(s, LinkLost):
+            self._link_lost = True
+            self._input_event("unavailable", f"link lost ({s.silent_s:.1f} s silent)")
+        elif isinstance(s, LinkRecovered):
+            self._link_lost = False
+            self._input_event("nominal", f"link recovered after {s.outage_s:.1f} s")
+        out = []
+        for ep in self.builder.push(s):
+            if isinstance(ep, EpochStart):
+                self.bank.start(ep.t_us, ep.baro_m)
+                self.logic.start(ep.t_us, self.boot)
+                if self.input is None:
+                    self.input = SourceTracker("input", ep.t_us, self.boot)
+                self.counters["starts"] += 1
+                continue
+            out.append(self._epoch(ep))
+        return out
+
+    def _on_reboot(self, s: Reboot) -> None:
+        # Close the previous boot's alarms honestly: everything restarts.
+        self.boot = s.boot
+        self._reset()
+
+    def _input_event(self, state: str, reason: str) -> None:
+        if self.input is None or self._last_t_us is None:
+            return
+        ev = self.input.set(state, self._last_t_us, reason)
+        if ev is not None:
+            self._pending.append(ev)
+
+    # ------------------------------------------------------------------ epoch
+
+    def _input_state(self, t_us: int) -> Optional[AlarmEvent]:
+        if self.input is None:
+            self.input = SourceTracker("input", t_us, self.boot)
+        if self._link_lost:
+            return None
+        m = self.mcfg
+        need_aux = max(m.alarm_rejections, 1) / m.time_to_alarm_s
+        need = {"imu": 10.0, "baro": 5.0, "gnss": need_aux, "rng": need_aux}
+        slow = []
+        since_start = (t_us - self.logic.t0_us) * 1e-6
+        if since_start >= _RATE_WINDOW_US * 1e-6:
+            for k, meter in self.rates.items():
+                r = meter.rate_hz(t_us)
+                if r <= 0.0:
+                    continue  # absent inputs are the channels' business (unavailable)
+                if r < need[k]:
+                    slow.append(f"{k} {r:.1f} Hz < {need[k]:.0f}")
+        if slow:
+            return self.input.set("caution", t_us, "too slow for %.1f s alarm: %s" % (m.time_to_alarm_s, ", ".join(slow)))
+        return self.input.set("nominal", t_us, "rates support the time-to-alarm")
+
+    def _epoch(self, ep: EpochInputs) -> tuple[EpochReport, list[AlarmEvent]]:
+        t_us = ep.t_us
+        self._last_t_us = t_us
+        ep_used = self.logic.pre(ep)
+        step = self.bank.step(ep_used)
+        d = self.logic.post(ep, ep_used, step)
+        events = self._pending + d.events
+        self._pending = []
+        ev = self._input_state(t_us)
+        if ev is not None:
+            events.append(ev)
+        bank = self.bank
+        chans = []
+        for c, name in enumerate(CHANNEL_NAMES):
+            x = bank.x[c]
+            P = bank.P[c]
+            sb, sa = step.innovation_var[c]
+            ib, ia = step.innovation[c]
+            chans.append(ChannelReport(
+                name=name,
+                height_ref_m=float(x[0]),
+                sigma_height_m=math.sqrt(max(P[0, 0], 0.0)),
+                vel_up_mps=float(x[1]),
+                baro_bias_m=float(x[2]),
+                acc_bias_mps2=float(x[3]),
+                available=bool(d.available[c]),
+                used=bool(d.used[c]),
+                nis=float(step.nis[c]),
+                dof=int(step.dof[c]),
+                norm_innov_baro=float(ib / math.sqrt(sb)) if sb == sb else math.nan,
+                norm_innov_aux=float(ia / math.sqrt(sa)) if sa == sa else math.nan,
+            ))
+        sources = dict(d.sources)
+        sources["input"] = self.input.status()
+        vpl = self.k_vpl * d.sigma_fused_m if d.sigma_fused_m == d.sigma_fused_m else math.inf
+        # A source that is merely unavailable (no data) does not degrade the
+        # overall state by itself: the protection level says whether what is
+        # left still supports the alert limit.
+        states = {st.state for st in sources.values()}
+        if "alarm" in states:
+            overall = "alarm"
+        elif not (vpl <= self.mcfg.alert_limit_m):
+            overall = "unavailable"
+        elif "caution" in states:
+            overall = "caution"
+        else:
+            overall = "nominal"
+        report = EpochReport(
+            t_us=t_us,
+            boot=self.boot,
+            height_fused_m=d.height_fused_m,
+            sigma_fused_m=d.sigma_fused_m,
+            channels=tuple(chans),
+            pairs=d.pairs,
+            sources=sources,
+            overall=overall,  # type: ignore[arg-type]
+            vpl_m=vpl,
+            alert_limit_m=self.mcfg.alert_limit_m,
+            baro_height_ref_m=self.raw["baro"],
+            gnss_height_ref_m=self.raw["gnss"],
+            range_height_agl_m=self.raw["rng"],
+            autopilot_height_ref_m=self.raw["ap"],
+            mode=self.mcfg.mode,
+        )
+        return report, events
+

@@ -1,0 +1,54 @@
+"""Baro-independent evidence: raw GNSS height against raw rangefinder height.
+
+All three channels use the barometer, each trusting it to a different degree,
+so a baro fault makes the channels disagree with each other in ways that look
+like an aux-sensor fault. The raw heights of the two aux sensors share nothing
+with the baro or the INS: if they agree, an aux sensor is not the culprit.
+
+Rangefinder heights are above the ground, GNSS heights above the reference;
+the paper's flat-ground assumption (ground at the reference) is made here
+too, as in the rangefinder channel itself.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import Optional
+
+
+class RawAuxCheck:
+    def __init__(self, window_s: float, k: float, max_skew_s: float = 0.25):
+        self.window_us = int(window_s * 1e6)
+        self.k = k
+        self.max_skew_us = int(max_skew_s * 1e6)
+        self._g: Optional[tuple[int, float, float]] = None  # (t_us, z, sigma)
+        self._r: Optional[tuple[int, float, float]] = None
+        self._q: deque[tuple[int, float, float]] = deque()  # (t_us, diff, var)
+
+    def push(self, t_us: int, gnss: Optional[tuple[float, float]], rng: Optional[tuple[float, float]]) -> None:
+        """Latest raw (height, sigma) of each aux sensor seen at this epoch."""
+        if gnss is not None:
+            self._g = (t_us, gnss[0], gnss[1])
+        if rng is not None:
+            self._r = (t_us, rng[0], rng[1])
+        if (gnss is not None or rng is not None) and self._g and self._r:
+            if abs(self._g[0] - self._r[0]) <= self.max_skew_us:
+                self._q.append((t_us, self._g[1] - self._r[1], self._g[2] ** 2 + self._r[2] ** 2))
+        while self._q and self._q[0][0] <= t_us - self.window_us:
+            self._q.popleft()
+
+    def verdict(self) -> Optional[tuple[bool, float, float]]:
+        """``(agree, mean difference, its sigma)`` over the window, or None
+        when there are too few paired samples to say."""
+        n = len(self._q)
+        if n < 3:
+            return None
+        mean = sum(d for _, d, _ in self._q) / n
+        # samples are treated as independent; GNSS errors are correlated in
+        # time, which k (the comparison threshold) absorbs
+        sigma = math.sqrt(sum(v for _, _, v in self._q) / n / n)
+        return abs(mean) <= self.k * max(sigma, 1e-6), mean, sigma
+
+    def clear(self) -> None:
+        self._q.clear()

@@ -1,0 +1,41 @@
+"""A source's state over time, reporting each change as an AlarmEvent."""
+
+from __future__ import annotations
+
+from typing import Optional
+
+from ..report import AlarmEvent, SourceStatus
+
+
+class SourceTracker:
+    """``clear_us``: a caution returns to nominal only once the source has been
+    clean that long (hysteresis: no flapping of alarms and STATUSTEXTs)."""
+
+    def __init__(self, source: str, t_us: int, boot: int, state: str = "nominal", reason: str = "start",
+                 clear_us: int = 0):
+        self.source = source
+        self.state = state
+        self.since_us = t_us
+        self.reason = reason
+        self.boot = boot
+        self.clear_us = clear_us
+        self._clean_since: Optional[int] = None
+
+    def set(self, state: str, t_us: int, reason: str) -> Optional[AlarmEvent]:
+        if state == self.state:
+            self._clean_since = None
+            self.reason = reason if state != "nominal" else self.reason
+            return None
+        if state == "nominal" and self.state == "caution" and self.clear_us > 0:
+            if self._clean_since is None:
+                self._clean_since = t_us
+            if t_us - self._clean_since < self.clear_us:
+                return None
+        self._clean_since = None
+        ev = AlarmEvent(t_us=t_us, boot=self.boot, source=self.source, state=state,  # type: ignore[arg-type]
+                        previous=self.state, reason=reason)  # type: ignore[arg-type]
+        self.state, self.since_us, self.reason = state, t_us, reason
+        return ev
+
+    def status(self, **extra) -> SourceStatus:
+        return SourceStatus(state=self.state, since_t_s=self.since_us * 1e-6, reason=self.reason, **extra)  # type: ignore[arg-type]
