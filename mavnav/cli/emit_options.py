@@ -1,0 +1,168 @@
+"""The ``--emit`` options of ``run`` and ``replay``, and the factory of MAVLink output sinks.
+
+Use::
+
+    @main.command("run")
+    @emit_options
+    def run_cmd(..., **kwargs):
+        emit, rest = split_emit_options(kwargs)
+        sinks += make_emit_sinks(**emit, live_input=True)
+
+Nothing is transmitted without ``--emit``; no command without
+``--allow-commands``. The sink itself is :mod:`mavnav.sinks.mavlink_out`.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Callable, List, Optional, Sequence, Tuple
+
+import click
+from pymavlink import mavutil
+
+from ..errors import ConfigError, InputError
+from ..sinks.base import Sink
+from ..sinks.mavlink_commands import DEFAULT_RATES, parse_rate
+from ..sinks.mavlink_link import load_signing_key
+from ..sinks.mavlink_out import EmitConfig, MavlinkOutSink
+
+INPUT = "input"
+
+#: The keyword arguments :func:`emit_options` adds (click's parameter names).
+EMIT_OPTION_KEYS: Tuple[str, ...] = (
+    "emit",
+    "emit_sysid",
+    "emit_compid",
+    "altitude_rate",
+    "statustext_interval",
+    "emit_debug",
+    "emit_fusable",
+    "allow_commands",
+    "request_rate",
+    "signing_key",
+    "signing_link_id",
+)
+
+_OPTIONS = [
+    click.option("--emit", "emit", metavar="CONNECTION", default=None,
+                 help="Send mavnav's result on this MAVLink link (any pymavlink connection string, e.g. "
+                      "udpout:127.0.0.1:14560, tcp:HOST:PORT, /dev/ttyUSB0,57600), or 'input' for back out of "
+                      "the link `run` listens on. Off by default: without it nothing is transmitted."),
+    click.option("--emit-sysid", "emit_sysid", type=click.IntRange(1, 255), default=1, show_default=True,
+                 help="MAVLink system id mavnav sends as (usually the vehicle's)."),
+    click.option("--emit-compid", "emit_compid", type=click.IntRange(2, 255), default=191, show_default=True,
+                 help="MAVLink component id mavnav sends as (191 = onboard computer; 1, the autopilot's, is refused)."),
+    click.option("--altitude-rate", "altitude_rate", type=click.FloatRange(0, 100, min_open=True), default=5.0,
+                 show_default=True, metavar="HZ", help="ALTITUDE rate, on vehicle time."),
+    click.option("--statustext-interval", "statustext_interval", type=click.FloatRange(0), default=1.0,
+                 show_default=True, metavar="S",
+                 help="Least vehicle time between two alarm STATUSTEXTs of one source; changes within it are "
+                      "coalesced (the latest state is always sent)."),
+    click.option("--emit-debug", "emit_debug", is_flag=True,
+                 help="Also send residuals and test statistics as NAMED_VALUE_FLOAT."),
+    click.option("--emit-fusable", "emit_fusable", is_flag=True,
+                 help="Also send ODOMETRY with the fused height and its variance, for an autopilot to fuse "
+                      "(quality -1 while in alarm)."),
+    click.option("--allow-commands", "allow_commands", is_flag=True,
+                 help="Allow mavnav to send MAV_CMD_SET_MESSAGE_INTERVAL (and nothing else) to ask the "
+                      "autopilot for the input rates the time-to-alarm needs."),
+    click.option("--request-rate", "request_rate", multiple=True, metavar="NAME:HZ",
+                 help="A message rate to request with --allow-commands (repeatable; default "
+                      + ", ".join(DEFAULT_RATES) + ")."),
+    click.option("--signing-key", "signing_key", type=click.Path(dir_okay=False), default=None, metavar="FILE",
+                 help="Sign what mavnav sends (MAVLink 2). FILE holds 32 raw bytes, or a passphrase hashed "
+                      "with SHA-256 as MAVProxy's `signing setup` does."),
+    click.option("--signing-link-id", "signing_link_id", type=click.IntRange(0, 255), default=0,
+                 show_default=True, help="MAVLink 2 signing link id of mavnav's frames."),
+]
+
+
+def emit_options(f: Callable) -> Callable:
+    """Decorator: add the ``--emit`` family of options to a click command."""
+    for opt in reversed(_OPTIONS):
+        f = opt(f)
+    return f
+
+
+def split_emit_options(kwargs: dict) -> Tuple[dict, dict]:
+    """``(emit options, everything else)`` from a command's keyword arguments."""
+    emit = {k: kwargs[k] for k in EMIT_OPTION_KEYS if k in kwargs}
+    rest = {k: v for k, v in kwargs.items() if k not in EMIT_OPTION_KEYS}
+    return emit, rest
+
+
+def _split_baud(connection: str):
+    if "," in connection:
+        dev, _, b = connection.rpartition(",")
+        if b.strip().isdigit():
+            return dev, int(b)
+    return connection, None
+
+
+def open_link(connection: str, sysid: int, compid: int):
+    """Open a pymavlink connection for sending (UDP, TCP with reconnection, serial)."""
+    device, baud = _split_baud(connection)
+    kwargs = {"source_system": sysid, "source_component": compid}
+    if baud is not None:
+        kwargs["baud"] = baud
+    if device.startswith("tcp:"):
+        # reconnect inside write(), one connect attempt each time, no sleeping retries
+        kwargs.update(autoreconnect=True, retries=0)
+    try:
+        return mavutil.mavlink_connection(device, **kwargs)
+    except Exception as exc:  # socket, serial and parsing errors alike
+        raise InputError(f"--emit {connection}: cannot open ({exc})") from None
+
+
+def make_emit_sinks(
+    *,
+    emit: Optional[str] = None,
+    emit_sysid: int = 1,
+    emit_compid: int = 191,
+    altitude_rate: float = 5.0,
+    statustext_interval: float = 1.0,
+    emit_debug: bool = False,
+    emit_fusable: bool = False,
+    allow_commands: bool = False,
+    request_rate: Sequence[str] = (),
+    signing_key: Optional[str] = None,
+    signing_link_id: int = 0,
+    live_input: Optional[bool] = None,
+    clock: Callable[[], float] = time.monotonic,
+    wall_clock: Callable[[], float] = time.time,
+) -> List[Sink]:
+    """The MAVLink output sinks the options ask for: none without ``--emit``.
+
+    ``live_input``: whether the run has a live input link (``run``: True,
+    ``replay``: False); ``--emit input`` is refused when it is False.
+    Misspelt keywords raise ``TypeError`` (no ``**kwargs`` swallowing).
+    """
+    if emit is None:
+        stray = [name for name, on in (("--allow-commands", allow_commands), ("--emit-debug", emit_debug),
+                                       ("--emit-fusable", emit_fusable), ("--signing-key", signing_key),
+                                       ("--request-rate", request_rate)) if on]
+        if stray:
+            raise ConfigError(f"{', '.join(stray)} without --emit: nothing is transmitted without --emit")
+        return []
+    emit = emit.strip()
+    if request_rate and not allow_commands:
+        raise ConfigError("--request-rate needs --allow-commands")
+    rates = tuple(parse_rate(s) for s in (request_rate or DEFAULT_RATES))
+    cfg = EmitConfig(
+        sysid=emit_sysid,
+        compid=emit_compid,
+        altitude_rate_hz=altitude_rate,
+        statustext_interval_s=statustext_interval,
+        debug_values=emit_debug,
+        fusable=emit_fusable,
+        allow_commands=allow_commands,
+        message_rates=rates,
+        signing_key=load_signing_key(signing_key) if signing_key else None,
+        signing_link_id=signing_link_id,
+    )
+    if emit == INPUT:
+        if live_input is False:
+            raise ConfigError("--emit input needs a live input link (`run`); use a connection string here")
+        return [MavlinkOutSink(None, cfg, use_input_link=True, clock=clock, wall_clock=wall_clock)]
+    link = open_link(emit, emit_sysid, emit_compid)
+    return [MavlinkOutSink(link, cfg, description=emit, clock=clock, wall_clock=wall_clock)]

@@ -1,0 +1,182 @@
+"""The only command mavnav may send: MAV_CMD_SET_MESSAGE_INTERVAL (511), when allowed.
+
+A monitor's time-to-alarm needs its inputs at rates the default telemetry
+streams often do not give (docs MAVLINK.md); with ``--allow-commands`` mavnav
+asks the autopilot for them, one message at a time (COMMAND_ACK does not say
+which message an answer is for), and checks each COMMAND_ACK:
+
+* ACCEPTED: done; IN_PROGRESS: keep waiting;
+* TEMPORARILY_REJECTED or no answer within ``timeout_s``: ask again, up to
+  ``attempts`` times in all (``confirmation`` counts the retries);
+* DENIED, UNSUPPORTED, FAILED, CANCELLED: refused, reported, not retried.
+
+The target is the first autopilot heard (a HEARTBEAT whose autopilot is not
+MAV_AUTOPILOT_INVALID and whose type is not a GCS or an onboard controller);
+nothing is sent before one is heard. Timing is on the wall clock (the
+vehicle answers in real time), passed in by the caller.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import Dict, List, Optional, Sequence, Tuple
+
+from pymavlink.dialects.v20 import ardupilotmega as dialect
+from pymavlink.dialects.v20 import common as mavlink2
+
+from ..errors import ConfigError
+
+log = logging.getLogger("mavnav.sinks.mavlink_out")
+
+MAV_CMD_SET_MESSAGE_INTERVAL = mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL  # 511
+
+# The inputs the monitor uses and rates that support a 1 s time-to-alarm:
+# IMU and attitude at the filter rate, baro and rangefinder well above the
+# alarm's bandwidth, GNSS at what receivers give.
+DEFAULT_RATES: Tuple[str, ...] = (
+    "HIGHRES_IMU:50",
+    "ATTITUDE:50",
+    "SCALED_PRESSURE:20",
+    "GPS_RAW_INT:5",
+    "DISTANCE_SENSOR:20",
+)
+
+_IDS: Dict[str, int] = {cls.msgname: mid for mid, cls in dialect.mavlink_map.items()}
+
+_NOT_TARGETS = {mavlink2.MAV_TYPE_GCS, mavlink2.MAV_TYPE_ONBOARD_CONTROLLER}
+_RESULT = {k: v.name.replace("MAV_RESULT_", "") for k, v in mavlink2.enums["MAV_RESULT"].items()}
+
+
+@dataclass(frozen=True)
+class RateRequest:
+    name: str
+    msg_id: int
+    rate_hz: float
+
+    @property
+    def interval_us(self) -> int:
+        return int(round(1e6 / self.rate_hz))
+
+
+def parse_rate(spec: str) -> RateRequest:
+    """``NAME:HZ`` (e.g. ``HIGHRES_IMU:50``) -> a :class:`RateRequest`; bad names refused by name."""
+    name, sep, hz = spec.partition(":")
+    name = name.strip().upper()
+    if not sep:
+        raise ConfigError(f"message rate {spec!r}: write NAME:HZ, e.g. HIGHRES_IMU:50")
+    if name not in _IDS:
+        raise ConfigError(f"message rate {spec!r}: no MAVLink message named {name}")
+    try:
+        rate = float(hz)
+    except ValueError:
+        raise ConfigError(f"message rate {spec!r}: {hz!r} is not a number of Hz") from None
+    if not (math.isfinite(rate) and 0 < rate <= 1000):
+        raise ConfigError(f"message rate {spec!r}: the rate must be in (0, 1000] Hz")
+    return RateRequest(name, _IDS[name], rate)
+
+
+def is_autopilot_heartbeat(msg) -> bool:
+    return (
+        msg.get_type() == "HEARTBEAT"
+        and msg.autopilot != mavlink2.MAV_AUTOPILOT_INVALID
+        and msg.type not in _NOT_TARGETS
+    )
+
+
+class IntervalRequester:
+    """Sends SET_MESSAGE_INTERVAL requests one at a time and checks their COMMAND_ACKs.
+
+    :meth:`poll` returns the COMMAND_LONG to send now (or None);
+    :meth:`on_message` takes what the link receives. ``results`` maps each
+    message name to ``accepted``, ``refused: <RESULT>`` or ``no answer``.
+    """
+
+    def __init__(
+        self,
+        requests: Sequence[RateRequest],
+        own: Tuple[int, int],
+        *,
+        timeout_s: float = 1.0,
+        attempts: int = 3,
+    ):
+        if attempts < 1:
+            raise ValueError("attempts must be >= 1")
+        self._queue: List[RateRequest] = list(requests)
+        self.own = own
+        self.timeout_s = timeout_s
+        self.attempts = attempts
+        self.target: Optional[Tuple[int, int]] = None
+        self.results: Dict[str, str] = {}
+        self.sent = 0
+        self._current: Optional[RateRequest] = None
+        self._attempt = 0
+        self._sent_at = -math.inf
+
+    @property
+    def done(self) -> bool:
+        return self._current is None and not self._queue
+
+    def on_message(self, msg, now: float) -> None:
+        mtype = msg.get_type()
+        if mtype == "HEARTBEAT":
+            if self.target is None and is_autopilot_heartbeat(msg):
+                self.target = (msg.get_srcSystem(), msg.get_srcComponent())
+                log.info("MAVLink output: commands go to the autopilot %d/%d", *self.target)
+        elif mtype == "COMMAND_ACK":
+            self._on_ack(msg, now)
+
+    def _on_ack(self, msg, now: float) -> None:
+        req = self._current
+        if req is None or msg.command != MAV_CMD_SET_MESSAGE_INTERVAL or self.target is None:
+            return
+        if msg.get_srcSystem() != self.target[0]:
+            return
+        # MAVLink 2 extension fields: 0 when the sender leaves them out
+        ts, tc = getattr(msg, "target_system", 0), getattr(msg, "target_component", 0)
+        if (ts and ts != self.own[0]) or (tc and tc != self.own[1]):
+            return  # an answer to someone else's command
+        result = _RESULT.get(msg.result, str(msg.result))
+        if msg.result == mavlink2.MAV_RESULT_ACCEPTED:
+            self._finish(req, "accepted")
+            log.info("MAVLink output: %s at %g Hz accepted", req.name, req.rate_hz)
+        elif msg.result == mavlink2.MAV_RESULT_IN_PROGRESS:
+            self._sent_at = now
+        elif msg.result == mavlink2.MAV_RESULT_TEMPORARILY_REJECTED and self._attempt < self.attempts:
+            self._sent_at = -math.inf  # ask again at the next poll
+        else:
+            self._finish(req, f"refused: {result}")
+            log.warning("MAVLink output: the vehicle refused %s at %g Hz (%s)", req.name, req.rate_hz, result)
+
+    def _finish(self, req: RateRequest, result: str) -> None:
+        self.results[req.name] = result
+        self._current = None
+        self._attempt = 0
+        self._sent_at = -math.inf
+
+    def poll(self, now: float):
+        """The COMMAND_LONG to send now, or None."""
+        if self.target is None:
+            return None
+        if self._current is None:
+            if not self._queue:
+                return None
+            self._current = self._queue.pop(0)
+            self._attempt = 0
+            self._sent_at = -math.inf
+        if now - self._sent_at < self.timeout_s:
+            return None
+        req = self._current
+        if self._attempt >= self.attempts:
+            self._finish(req, "no answer")
+            log.warning("MAVLink output: no COMMAND_ACK for %s at %g Hz after %d attempts",
+                        req.name, req.rate_hz, self.attempts)
+            return self.poll(now)
+        self._attempt += 1
+        self._sent_at = now
+        self.sent += 1
+        return mavlink2.MAVLink_command_long_message(
+            self.target[0], self.target[1], MAV_CMD_SET_MESSAGE_INTERVAL, self._attempt - 1,
+            float(req.msg_id), float(req.interval_us), 0.0, 0.0, 0.0, 0.0, 0.0,
+        )

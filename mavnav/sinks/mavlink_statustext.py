@@ -1,0 +1,131 @@
+"""STATUSTEXT for alarm transitions: wording, severity and a coalescing rate limit.
+
+One STATUSTEXT per change of a source's state, at most 50 characters (the
+field's size; no terminator is needed at full length), ASCII, naming the
+source: ``mavnav gnss ALARM: <reason>``. Severity follows the new state:
+
+=============  =======================
+new state      MAV_SEVERITY
+=============  =======================
+alarm          CRITICAL (2)
+unavailable    ERROR (3)
+caution        WARNING (4)
+nominal        NOTICE (5)  (cleared)
+=============  =======================
+
+The rate limit is per source, on vehicle time: a source's first change is
+sent at once; further changes of the same source within
+``min_interval_us`` of its last STATUSTEXT are coalesced into one pending
+message that always holds the *latest* state (never dropped) and counts the
+changes it swallowed (``(+2)`` in the text). Pending messages go out when
+the source's interval has passed, on a reboot (vehicle time restarts), or
+at :meth:`StatusTextLimiter.flush` (end of run, link loss). Sources do not
+delay one another.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Dict, List, Optional, Tuple
+
+from pymavlink.dialects.v20 import common as mavlink2
+
+from ..report import AlarmEvent
+
+MAX_CHARS = 50
+PREFIX = "mavnav"
+
+SEVERITY_FOR_STATE = {
+    "alarm": mavlink2.MAV_SEVERITY_CRITICAL,
+    "unavailable": mavlink2.MAV_SEVERITY_ERROR,
+    "caution": mavlink2.MAV_SEVERITY_WARNING,
+    "nominal": mavlink2.MAV_SEVERITY_NOTICE,
+}
+
+
+def severity(event: AlarmEvent) -> int:
+    """MAV_SEVERITY for a transition, from its new state."""
+    return SEVERITY_FOR_STATE[event.state]
+
+
+def _ascii(text: str) -> str:
+    return text.encode("ascii", "replace").decode("ascii").replace("\n", " ").replace("\r", " ")
+
+
+def format_text(event: AlarmEvent, coalesced: int = 0) -> str:
+    """``mavnav SOURCE STATE[ (+N)]: reason``, cut to 50 ASCII characters."""
+    head = f"{PREFIX} {event.source} {event.state.upper()}"
+    if coalesced:
+        head += f" (+{coalesced})"
+    reason = _ascii(event.reason.strip())
+    text = f"{head}: {reason}" if reason else head
+    return _ascii(text)[:MAX_CHARS]
+
+
+@dataclass
+class _Pending:
+    event: AlarmEvent
+    swallowed: int  # changes replaced by a later one before being sent
+
+
+class StatusTextLimiter:
+    """Per-source coalescing rate limit on vehicle time (see the module docstring).
+
+    Each method returns the ``(event, swallowed)`` pairs to send now, in
+    vehicle-time order.
+    """
+
+    def __init__(self, min_interval_us: int):
+        if min_interval_us < 0:
+            raise ValueError("min_interval_us must be >= 0")
+        self.min_interval_us = int(min_interval_us)
+        self._last_sent: Dict[str, Tuple[int, int]] = {}  # source -> (boot, t_us)
+        self._pending: Dict[str, _Pending] = {}
+        self.coalesced_total = 0
+
+    def _free(self, source: str, boot: int, t_us: int) -> bool:
+        last = self._last_sent.get(source)
+        if last is None:
+            return True
+        lboot, lt = last
+        return boot != lboot or t_us < lt or t_us - lt >= self.min_interval_us
+
+    def offer(self, event: AlarmEvent) -> List[Tuple[AlarmEvent, int]]:
+        out = self.due(event.boot, event.t_us)
+        src = event.source
+        pend = self._pending.get(src)
+        if pend is None and self._free(src, event.boot, event.t_us):
+            self._last_sent[src] = (event.boot, event.t_us)
+            out.append((event, 0))
+            return out
+        if pend is None:
+            self._pending[src] = _Pending(event, 0)
+        else:
+            pend.swallowed += 1
+            pend.event = event
+            self.coalesced_total += 1
+        return out
+
+    def due(self, boot: int, t_us: int) -> List[Tuple[AlarmEvent, int]]:
+        """Pending messages whose source interval has passed at ``(boot, t_us)``."""
+        if not self._pending:
+            return []
+        ready = [s for s in self._pending if self._free(s, boot, t_us)]
+        return self._pop(ready, boot, t_us)
+
+    def flush(self) -> List[Tuple[AlarmEvent, int]]:
+        """Every pending message, regardless of the interval."""
+        return self._pop(list(self._pending), None, None)
+
+    def _pop(self, sources, boot: Optional[int], t_us: Optional[int]) -> List[Tuple[AlarmEvent, int]]:
+        out = []
+        for s in sources:
+            p = self._pending.pop(s)
+            self._last_sent[s] = (p.event.boot, p.event.t_us) if boot is None else (boot, t_us)
+            out.append((p.event, p.swallowed))
+        out.sort(key=lambda x: (x[0].boot, x[0].t_us))
+        return out
+
+    @property
+    def pending(self) -> int:
+        return len(self._pending)

@@ -1,0 +1,467 @@
+"""MAVLink output sink: what a pymavlink peer on 127.0.0.1 receives and decodes.
+
+The helpers here (:class:`Peer`, :func:`report`, :func:`feed`) are shared by
+the other ``test_emit_*`` modules.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import socket
+import threading
+import time
+from typing import Callable, List, Optional
+
+import numpy as np
+import pytest
+from pymavlink.dialects.v20 import common as mavlink2
+
+from mavnav.cli.emit_options import open_link
+from mavnav.report import (
+    CHANNEL_NAMES, PAIR_NAMES, SOURCES, AlarmEvent, ChannelReport, EpochReport, PairReport, RunSummary,
+    SourceStatus,
+)
+from mavnav.samples import LinkLost, Reboot, ReferenceSet
+from mavnav.sinks.base import Sink, SinkSet
+from mavnav.sinks.mavlink_out import DEBUG_NAMES, EmitConfig, MavlinkOutSink
+
+F32 = np.float32
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+class Peer:
+    """A pymavlink endpoint on a UDP port of 127.0.0.1: decodes all it receives, in a thread.
+
+    ``key``: check MAVLink 2 signatures with this key (unsigned frames are
+    then refused too, unless ``allow_unsigned``).
+    """
+
+    def __init__(self, key: Optional[bytes] = None, allow_unsigned: bool = False, sysid: int = 1, compid: int = 1):
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.settimeout(0.02)
+        self.port = self.sock.getsockname()[1]
+        self.mav = mavlink2.MAVLink(None, srcSystem=sysid, srcComponent=compid)
+        self.mav.robust_parsing = True
+        if key is not None:
+            self.mav.signing.secret_key = key
+            self.mav.signing.timestamp = int(max(time.time() - 1420070400, 0) * 100_000)
+            self.mav.signing.allow_unsigned_callback = (lambda mav, msgid: True) if allow_unsigned else (
+                lambda mav, msgid: False)
+        self.msgs: list = []
+        self.bad: list = []
+        self.last_from = None
+        self._cond = threading.Condition()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    @property
+    def url(self) -> str:
+        return f"udpout:127.0.0.1:{self.port}"
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                data, addr = self.sock.recvfrom(65536)
+            except (socket.timeout, OSError):
+                continue
+            out = self.mav.parse_buffer(data) or []
+            with self._cond:
+                self.last_from = addr
+                for m in out:
+                    (self.bad if m.get_type() == "BAD_DATA" else self.msgs).append(m)
+                self._cond.notify_all()
+
+    def of(self, mtype: str, compid: Optional[int] = None) -> list:
+        with self._cond:
+            return [m for m in self.msgs if m.get_type() == mtype
+                    and (compid is None or m.get_srcComponent() == compid)]
+
+    def wait_for(self, cond: Callable[[], bool], timeout: float = 5.0) -> bool:
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while not cond():
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return False
+                self._cond.wait(min(left, 0.05))
+        return True
+
+    def send(self, msg, addr=None) -> None:
+        self.sock.sendto(msg.pack(self.mav), addr or self.last_from)
+        self.mav.seq = (self.mav.seq + 1) % 256
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(2)
+        self.sock.close()
+
+
+@pytest.fixture
+def peer():
+    p = Peer()
+    yield p
+    p.close()
+
+
+def status(state="nominal"):
+    return SourceStatus(state=state, since_t_s=0.0, reason="", window_stat=1.5)
+
+
+def report(t_us: int, h: float = 12.5, sigma: float = 0.4, *, boot: int = 0, overall: str = "nominal",
+           rng: str = "nominal", rng_agl: float = 7.25, rng_h: float = 7.5, baro_h: float = 13.0) -> EpochReport:
+    chans = tuple(
+        ChannelReport(n, rng_h if n == "rangefinder" else h + 0.1 * i, 0.3, 0.2, 0.0, 0.0, True, True,
+                      1.0 + i, 2, 0.1, -0.2)
+        for i, n in enumerate(CHANNEL_NAMES)
+    )
+    pairs = tuple(PairReport(n, 0.5 * (i + 1), 3.0, False, True) for i, n in enumerate(PAIR_NAMES))
+    sources = {s: status(rng if s == "rangefinder" else "nominal") for s in SOURCES}
+    return EpochReport(t_us=t_us, boot=boot, height_fused_m=h, sigma_fused_m=sigma, channels=chans, pairs=pairs,
+                       sources=sources, overall=overall, vpl_m=2.5, alert_limit_m=10.0,
+                       baro_height_ref_m=baro_h, range_height_agl_m=rng_agl)
+
+
+def event(t_s: float, source="gnss", state="alarm", previous="nominal", reason="innovation 6.1 sigma", boot=0):
+    return AlarmEvent(t_us=int(round(t_s * 1e6)), boot=boot, source=source, state=state, previous=previous,
+                      reason=reason)
+
+
+def feed(sink: Sink, reports) -> List[EpochReport]:
+    out = []
+    for r in reports:
+        sink.epoch(r)
+        out.append(r)
+    return out
+
+
+def reports_every(dt_s: float, duration_s: float, t0_s: float = 0.0, **kw) -> List[EpochReport]:
+    n = int(round(duration_s / dt_s))
+    return [report(int(round((t0_s + k * dt_s) * 1e6)), h=10.0 + 0.01 * k, **kw) for k in range(n)]
+
+
+def udp_sink(peer: Peer, **cfg) -> MavlinkOutSink:
+    c = EmitConfig(**cfg)
+    return MavlinkOutSink(open_link(peer.url, c.sysid, c.compid), c, description=peer.url)
+
+
+# --------------------------------------------------------------------------- heartbeat
+
+
+def test_heartbeat_is_an_onboard_controller_at_1hz_of_vehicle_time(peer):
+    sink = udp_sink(peer, sysid=42, compid=191)
+    sink.start({})
+    feed(sink, reports_every(0.02, 5.0))  # vehicle t = 0 .. 4.98 s
+    sink.close(RunSummary())
+    assert peer.wait_for(lambda: len(peer.of("ALTITUDE")) == 25)
+    hbs = peer.of("HEARTBEAT")
+    assert len(hbs) == 1 + 5  # one at start, then t = 0, 1, 2, 3, 4 s
+    for hb in hbs:
+        assert hb.type == mavlink2.MAV_TYPE_ONBOARD_CONTROLLER
+        assert hb.autopilot == mavlink2.MAV_AUTOPILOT_INVALID
+        assert hb.get_srcSystem() == 42 and hb.get_srcComponent() == 191
+        assert hb.base_mode == 0 and hb.custom_mode == 0
+    assert hbs[0].system_status == mavlink2.MAV_STATE_STANDBY
+    assert {hb.system_status for hb in hbs[1:]} == {mavlink2.MAV_STATE_ACTIVE}
+    assert all(m.get_header().mlen or True for m in hbs)
+    assert all(m.get_msgbuf()[0] == 0xFD for m in hbs)  # MAVLink 2 frames
+
+
+def test_heartbeat_reports_critical_in_alarm(peer):
+    sink = udp_sink(peer)
+    sink.start({})
+    feed(sink, [report(0), report(1_000_000, overall="alarm"), report(2_000_000, overall="caution")])
+    assert peer.wait_for(lambda: len(peer.of("HEARTBEAT")) == 4)
+    assert [h.system_status for h in peer.of("HEARTBEAT")] == [
+        mavlink2.MAV_STATE_STANDBY, mavlink2.MAV_STATE_ACTIVE, mavlink2.MAV_STATE_CRITICAL, mavlink2.MAV_STATE_ACTIVE]
+
+
+def test_compid_of_the_autopilot_is_refused():
+    from mavnav.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="autopilot"):
+        EmitConfig(compid=1)
+
+
+# --------------------------------------------------------------------------- ALTITUDE
+
+
+@pytest.mark.parametrize("rate_hz,epoch_dt_s", [(5.0, 0.02), (2.0, 0.02), (10.0, 0.01), (4.0, 0.0333)])
+def test_altitude_at_the_configured_rate_of_vehicle_time(peer, rate_hz, epoch_dt_s):
+    sink = udp_sink(peer, altitude_rate_hz=rate_hz)
+    sink.start({})
+    fed = feed(sink, reports_every(epoch_dt_s, 6.0, t0_s=100.0))
+    span_s = (fed[-1].t_us - fed[0].t_us) * 1e-6
+    expected = int(math.floor(span_s * rate_hz + 1e-9)) + 1
+    assert peer.wait_for(lambda: len(peer.of("ALTITUDE")) >= expected)
+    sink.close(RunSummary())
+    alts = peer.of("ALTITUDE")
+    assert abs(len(alts) - expected) <= 1
+    t = np.array([a.time_usec for a in alts], dtype=np.int64)
+    gaps = np.diff(t) * 1e-6
+    assert np.all(gaps >= 1 / rate_hz - epoch_dt_s - 1e-6) and np.all(gaps <= 1 / rate_hz + epoch_dt_s + 1e-6)
+    assert abs(np.mean(gaps) - 1 / rate_hz) < epoch_dt_s / 2
+
+
+def test_altitude_values_equal_the_reports_fed(peer):
+    sink = udp_sink(peer, altitude_rate_hz=50.0)  # every epoch at 50 Hz
+    sink.start({})
+    sink.sample(ReferenceSet(t_us=0, recv_s=0.0, boot=0, kind="baro", value=101325.0, alt_ref_msl_m=None,
+                             origin="startup"))
+    sink.sample(ReferenceSet(t_us=0, recv_s=0.0, boot=0, kind="gnss", value=480.0, alt_ref_msl_m=480.25,
+                             origin="home"))
+    fed = [report(k * 20_000, h=3.0 + 0.37 * k, sigma=0.2 + 0.01 * k, baro_h=4.0 + 0.1 * k,
+                  rng_agl=2.0 + 0.3 * k, rng_h=2.1 + 0.3 * k) for k in range(20)]
+    fed.append(report(20 * 20_000, h=9.0, rng="alarm"))
+    fed.append(report(21 * 20_000, h=math.nan, rng="unavailable"))
+    feed(sink, fed)
+    assert peer.wait_for(lambda: len(peer.of("ALTITUDE")) == len(fed))
+    for r, a in zip(fed, peer.of("ALTITUDE")):
+        assert a.get_srcComponent() == 191
+        assert a.time_usec == r.t_us
+        h = F32(r.height_fused_m)
+        np.testing.assert_equal(F32(a.altitude_local), h)
+        np.testing.assert_equal(F32(a.altitude_relative), h)
+        np.testing.assert_equal(F32(a.altitude_amsl), F32(480.25 + r.height_fused_m))
+        np.testing.assert_equal(F32(a.altitude_monotonic), F32(r.baro_height_ref_m))
+        if r.ok("rangefinder"):
+            np.testing.assert_equal(F32(a.altitude_terrain), F32(r.channels[1].height_ref_m))
+            np.testing.assert_equal(F32(a.bottom_clearance), F32(r.range_height_agl_m))
+        else:
+            assert math.isnan(a.altitude_terrain) and math.isnan(a.bottom_clearance)
+    assert math.isnan(peer.of("ALTITUDE")[-1].altitude_local)
+
+
+def test_altitude_amsl_is_nan_without_a_known_reference_and_after_a_reboot(peer):
+    sink = udp_sink(peer, altitude_rate_hz=50.0)
+    sink.start({})
+    sink.epoch(report(0))
+    sink.sample(ReferenceSet(t_us=20_000, recv_s=0.0, boot=0, kind="baro", value=1e5, alt_ref_msl_m=100.0,
+                             origin="config"))
+    sink.epoch(report(20_000, h=5.0))
+    sink.sample(Reboot(t_us=1000, recv_s=1.0, boot=1, last_t_us=40_000))
+    sink.epoch(report(1000, h=6.0, boot=1))
+    assert peer.wait_for(lambda: len(peer.of("ALTITUDE")) == 3)
+    a = peer.of("ALTITUDE")
+    assert math.isnan(a[0].altitude_amsl) and a[1].altitude_amsl == 105.0 and math.isnan(a[2].altitude_amsl)
+    assert a[2].time_usec == 1000  # the decimation restarted with the vehicle clock
+
+
+# --------------------------------------------------------------------------- STATUSTEXT
+
+
+@pytest.mark.parametrize("state,previous,severity", [
+    ("alarm", "nominal", mavlink2.MAV_SEVERITY_CRITICAL),
+    ("unavailable", "nominal", mavlink2.MAV_SEVERITY_ERROR),
+    ("caution", "nominal", mavlink2.MAV_SEVERITY_WARNING),
+    ("nominal", "alarm", mavlink2.MAV_SEVERITY_NOTICE),
+])
+def test_statustext_severity_names_the_source(peer, state, previous, severity):
+    sink = udp_sink(peer)
+    sink.start({})
+    sink.alarm(event(3.0, source="rangefinder", state=state, previous=previous,
+                     reason="range disagrees with GNSS and baro by 4.2 m over 1.0 s"))
+    assert peer.wait_for(lambda: len(peer.of("STATUSTEXT")) == 1)
+    st = peer.of("STATUSTEXT")[0]
+    assert st.severity == severity and st.get_srcComponent() == 191
+    assert st.text.startswith(f"mavnav rangefinder {state.upper()}: range disagrees")
+    assert len(st.text) == 50  # cut to the field
+
+
+def test_statustext_rate_limit_coalesces_and_keeps_the_latest_state(peer):
+    sink = udp_sink(peer, statustext_interval_s=1.0)
+    sink.start({})
+    sink.alarm(event(10.0, "gnss", "caution", "nominal"))          # sent at once
+    sink.alarm(event(10.1, "gnss", "alarm", "caution"))            # held
+    sink.alarm(event(10.2, "gnss", "caution", "alarm"))            # replaces it
+    sink.alarm(event(10.3, "rangefinder", "alarm", "nominal"))     # another source: not delayed
+    sink.alarm(event(10.4, "gnss", "alarm", "caution", reason="step 9 m"))  # the latest gnss state
+    assert peer.wait_for(lambda: len(peer.of("STATUSTEXT")) == 2)
+    feed(sink, [report(int(t * 1e6)) for t in np.arange(10.4, 10.99, 0.02)])
+    time.sleep(0.05)  # bounded check that nothing else went out before the interval passed
+    assert len(peer.of("STATUSTEXT")) == 2
+    feed(sink, [report(11_000_000)])  # the gnss interval has passed
+    assert peer.wait_for(lambda: len(peer.of("STATUSTEXT")) == 3)
+    texts = [m.text for m in peer.of("STATUSTEXT")]
+    assert texts[0].startswith("mavnav gnss CAUTION")
+    assert texts[1].startswith("mavnav rangefinder ALARM")
+    assert texts[2] == "mavnav gnss ALARM (+2): step 9 m"
+    assert peer.of("STATUSTEXT")[2].severity == mavlink2.MAV_SEVERITY_CRITICAL
+    # a pending change is flushed at the end of the run
+    sink.alarm(event(11.1, "gnss", "nominal", "alarm", reason="consistent again"))
+    sink.close(RunSummary())
+    assert peer.wait_for(lambda: len(peer.of("STATUSTEXT")) == 4)
+    assert peer.of("STATUSTEXT")[3].text == "mavnav gnss NOMINAL: consistent again"
+
+
+def test_pending_statustext_goes_out_on_link_loss(peer):
+    sink = udp_sink(peer, statustext_interval_s=5.0)
+    sink.start({})
+    sink.alarm(event(1.0, "input", "caution", "nominal", reason="IMU 8 Hz < 25 Hz"))
+    sink.alarm(event(1.5, "input", "alarm", "caution", reason="link lost"))
+    assert peer.wait_for(lambda: len(peer.of("STATUSTEXT")) == 1)
+    sink.sample(LinkLost(recv_s=100.0, silent_s=3.0))
+    assert peer.wait_for(lambda: len(peer.of("STATUSTEXT")) == 2)
+    assert peer.of("STATUSTEXT")[1].text == "mavnav input ALARM: link lost"
+
+
+# --------------------------------------------------------------------------- optional messages
+
+
+def test_debug_values_and_fusable_are_off_by_default(peer):
+    sink = udp_sink(peer)
+    sink.start({})
+    feed(sink, reports_every(0.02, 1.0))
+    assert peer.wait_for(lambda: len(peer.of("ALTITUDE")) == 5)
+    assert not peer.of("NAMED_VALUE_FLOAT") and not peer.of("ODOMETRY")
+    assert {m.get_type() for m in peer.msgs} == {"HEARTBEAT", "ALTITUDE"}
+
+
+def test_debug_named_values(peer):
+    sink = udp_sink(peer, debug_values=True, altitude_rate_hz=1.0)
+    sink.start({})
+    r = report(2_500_000)
+    sink.epoch(r)
+    assert peer.wait_for(lambda: len(peer.of("NAMED_VALUE_FLOAT")) == len(DEBUG_NAMES))
+    got = {m.name: m for m in peer.of("NAMED_VALUE_FLOAT")}
+    assert set(got) == set(DEBUG_NAMES) and all(len(n) <= 10 for n in got)
+    assert all(m.time_boot_ms == 2500 for m in got.values())
+    assert got["nis_rng"].value == r.channels[1].nis
+    assert got["dH_gns_bar"].value == r.pairs[1].diff_m
+    assert got["win_gnss"].value == r.sources["gnss"].window_stat
+    np.testing.assert_equal(F32(got["sig_fused"].value), F32(r.sigma_fused_m))
+    assert got["vpl"].value == r.vpl_m
+
+
+def test_odometry_carries_height_and_variance_and_fails_in_alarm(peer):
+    sink = udp_sink(peer, fusable=True, altitude_rate_hz=50.0)
+    sink.start({})
+    feed(sink, [report(0, h=12.5, sigma=0.4), report(20_000, h=12.75, sigma=0.5, overall="alarm"),
+                report(40_000, h=math.nan, sigma=math.nan, overall="unavailable")])
+    assert peer.wait_for(lambda: len(peer.of("ODOMETRY")) == 3)
+    ok, alarm, lost = peer.of("ODOMETRY")
+    assert ok.z == -12.5 and F32(ok.pose_covariance[11]) == F32(0.4 * 0.4) and ok.quality == 100
+    assert ok.frame_id == mavlink2.MAV_FRAME_LOCAL_NED and ok.time_usec == 0
+    assert math.isinf(ok.pose_covariance[0]) and math.isnan(ok.x) and math.isnan(ok.vz)
+    assert ok.estimator_type == mavlink2.MAV_ESTIMATOR_TYPE_UNKNOWN
+    assert alarm.z == -12.75 and alarm.quality == -1 and math.isinf(alarm.pose_covariance[11])
+    assert math.isnan(lost.z) and lost.quality == -1
+
+
+# --------------------------------------------------------------------------- the input link
+
+
+def test_emit_input_writes_back_to_the_live_link():
+    from pymavlink import mavutil
+
+    vehicle = Peer(sysid=1, compid=1)
+    link = mavutil.mavlink_connection("udpin:127.0.0.1:0")
+    try:
+        port = link.port.getsockname()[1]
+        # the vehicle talks first, as on a real link; the source (here: us) reads it
+        vehicle.send(mavlink2.MAVLink_heartbeat_message(2, 3, 0, 0, 4, 3), ("127.0.0.1", port))
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline and link.recv_match(type="HEARTBEAT", blocking=True, timeout=0.1) is None:
+            pass
+        sink = MavlinkOutSink(None, EmitConfig(), use_input_link=True)
+        sink.start({"link": link})
+        feed(sink, reports_every(0.02, 0.5))
+        assert vehicle.wait_for(lambda: len(vehicle.of("ALTITUDE", compid=191)) == 3)
+        assert vehicle.of("HEARTBEAT", compid=191)[0].type == mavlink2.MAV_TYPE_ONBOARD_CONTROLLER
+        sink.close(RunSummary())
+        assert link.port.fileno() >= 0  # not ours to close
+    finally:
+        link.close()
+        vehicle.close()
+
+
+def test_emit_input_without_a_live_link_is_reported_and_dropped():
+    summary = RunSummary()
+    sinks = SinkSet([MavlinkOutSink(None, EmitConfig(), use_input_link=True)], summary)
+    sinks.start({"mode": "adaptive"})
+    assert not sinks.active
+    assert "live input link" in summary.sink_failures["mavlink-out"]
+
+
+# --------------------------------------------------------------------------- failing sends
+
+
+def test_closed_socket_is_reported_once_and_the_monitor_goes_on(peer, caplog):
+    sink = udp_sink(peer)
+    summary = RunSummary()
+    sinks = SinkSet([sink], summary)
+    sinks.start({})
+    sinks.epoch(report(0))
+    assert peer.wait_for(lambda: len(peer.of("ALTITUDE")) == 1)
+    sink._link.port.close()  # the socket goes away under the sink
+    with caplog.at_level(logging.WARNING, logger="mavnav.sinks.mavlink_out"):
+        for r in reports_every(0.02, 3.0, t0_s=1.0):
+            sinks.epoch(r)
+        sinks.alarm(event(2.0))
+        sinks.close()
+    warnings = [r for r in caplog.records if "send failed" in r.getMessage()]
+    assert len(warnings) == 1 and "socket closed" in warnings[0].getMessage()
+    assert sinks.active == [sink] and not summary.sink_failures
+    assert sink.writer.failures >= 15 + 3 + 1 and sink.writer.outages == 1
+
+
+def _tcp_server(port: int = 0) -> socket.socket:
+    srv = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    srv.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    srv.bind(("127.0.0.1", port))
+    srv.listen(1)
+    srv.settimeout(5)
+    return srv
+
+
+def test_tcp_peer_gone_is_reported_once_and_sending_resumes(caplog):
+    srv = _tcp_server()
+    port = srv.getsockname()[1]
+    c = EmitConfig()
+    sink = MavlinkOutSink(open_link(f"tcp:127.0.0.1:{port}", c.sysid, c.compid), c)
+    t = [0]
+
+    def step(n=1):
+        for _ in range(n):
+            sink.epoch(report(t[0]))
+            t[0] += 200_000
+
+    try:
+        conn, _ = srv.accept()
+        sink.start({})
+        sink.writer.retry_s = 0.05
+        conn.settimeout(5)
+        assert conn.recv(4096)[0] == 0xFD  # the start HEARTBEAT arrived
+        conn.close()
+        srv.close()  # the peer is gone: connections are refused
+        with caplog.at_level(logging.WARNING, logger="mavnav.sinks.mavlink_out"):
+            deadline = time.monotonic() + 10
+            while sink.writer.failures == 0 and time.monotonic() < deadline:
+                step()
+            assert sink.writer.failures > 0
+            step(20)  # more failing sends: counted, not logged again
+            warned = [r.getMessage() for r in caplog.records if "send failed" in r.getMessage()]
+            assert len(warned) == 1
+            # the peer comes back: sending resumes after a retry interval
+            srv = _tcp_server(port)
+            conn = None
+            deadline = time.monotonic() + 10
+            while sink.writer._failing and time.monotonic() < deadline:
+                step()
+                time.sleep(0.01)
+            assert not sink.writer._failing
+            conn, _ = srv.accept()
+            step(5)
+            conn.settimeout(5)
+            assert conn.recv(4096)[0] == 0xFD
+        assert any("sending again" in r.getMessage() for r in caplog.records)
+        assert sink.writer.outages == 1
+        if conn is not None:
+            conn.close()
+    finally:
+        sink.close(RunSummary())
+        srv.close()
