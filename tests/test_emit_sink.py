@@ -54,6 +54,7 @@ class Peer:
         self.msgs: list = []
         self.bad: list = []
         self.last_from = None
+        self.handler: Optional[Callable] = None  # called in the receive thread: handler(peer, msg)
         self._cond = threading.Condition()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
@@ -75,6 +76,9 @@ class Peer:
                 for m in out:
                     (self.bad if m.get_type() == "BAD_DATA" else self.msgs).append(m)
                 self._cond.notify_all()
+            if self.handler is not None:
+                for m in out:
+                    self.handler(self, m)
 
     def of(self, mtype: str, compid: Optional[int] = None) -> list:
         with self._cond:

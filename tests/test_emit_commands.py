@@ -1,0 +1,224 @@
+"""Commands: only MAV_CMD_SET_MESSAGE_INTERVAL, only with --allow-commands, ACKs checked.
+
+The vehicle is a pymavlink peer on 127.0.0.1 that answers COMMAND_LONG
+with COMMAND_ACK according to a per-message policy.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import pytest
+from pymavlink.dialects.v20 import common as mavlink2
+
+from mavnav.errors import ConfigError
+from mavnav.report import RunSummary
+from mavnav.sinks.mavlink_commands import DEFAULT_RATES, parse_rate
+from mavnav.sinks.mavlink_out import EmitConfig, MavlinkOutSink
+from test_emit_sink import Peer, report, udp_sink
+
+R = mavlink2
+ACCEPTED, TEMP, DENIED, UNSUPPORTED, IN_PROGRESS = (
+    R.MAV_RESULT_ACCEPTED, R.MAV_RESULT_TEMPORARILY_REJECTED, R.MAV_RESULT_DENIED, R.MAV_RESULT_UNSUPPORTED,
+    R.MAV_RESULT_IN_PROGRESS)
+
+
+def autopilot_heartbeat():
+    return R.MAVLink_heartbeat_message(R.MAV_TYPE_QUADROTOR, R.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0,
+                                       R.MAV_STATE_STANDBY, 3)
+
+
+class Autopilot:
+    """Answers SET_MESSAGE_INTERVAL per message id: a list of answers, one per request (the last one
+    repeats); an answer is a result, a tuple of results sent in a row, or None (silent)."""
+
+    def __init__(self, peer: Peer, policy: dict):
+        self.peer = peer
+        self.policy = {k: list(v) for k, v in policy.items()}
+        self.commands = []
+        peer.handler = self.handle
+
+    def handle(self, peer, m):
+        if m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 191 and len(peer.of("HEARTBEAT", 191)) == 1:
+            peer.send(autopilot_heartbeat())  # the vehicle announces itself once it knows the address
+        if m.get_type() != "COMMAND_LONG":
+            return
+        self.commands.append(m)
+        answers = self.policy.get(int(m.param1), [ACCEPTED])
+        result = answers.pop(0) if len(answers) > 1 else answers[0]
+        for res in (result if isinstance(result, tuple) else () if result is None else (result,)):
+            peer.send(R.MAVLink_command_ack_message(m.command, res, 0, 0, m.get_srcSystem(), m.get_srcComponent()))
+
+
+def run_until(sink, cond, timeout=10.0):
+    t = 0
+    deadline = time.monotonic() + timeout
+    while not cond() and time.monotonic() < deadline:
+        sink.epoch(report(t))
+        t += 20_000
+        time.sleep(0.002)  # live pacing: the vehicle answers in real time
+    return cond()
+
+
+def test_requests_are_checked_retried_and_refusals_reported(caplog):
+    ap_peer = Peer(sysid=1, compid=1)
+    rates = tuple(parse_rate(s) for s in ("HIGHRES_IMU:50", "ATTITUDE:40", "SCALED_PRESSURE:20", "GPS_RAW_INT:5",
+                                          "DISTANCE_SENSOR:10"))
+    ids = {r.name: r.msg_id for r in rates}
+    ap = Autopilot(ap_peer, {
+        ids["HIGHRES_IMU"]: [ACCEPTED],
+        ids["ATTITUDE"]: [UNSUPPORTED],
+        ids["SCALED_PRESSURE"]: [None],  # never answers
+        ids["GPS_RAW_INT"]: [TEMP, ACCEPTED],
+        ids["DISTANCE_SENSOR"]: [(IN_PROGRESS, ACCEPTED)],
+    })
+    sink = udp_sink(ap_peer, allow_commands=True, message_rates=rates, command_timeout_s=0.15, command_attempts=3)
+    try:
+        with caplog.at_level(logging.INFO, logger="mavnav.sinks.mavlink_out"):
+            sink.start({})
+            assert run_until(sink, lambda: sink.requester.done)
+            sink.close(RunSummary())  # reports what was not granted
+        assert sink.requester.target == (1, 1)
+        assert sink.requester.results == {
+            "HIGHRES_IMU": "accepted",
+            "ATTITUDE": "refused: UNSUPPORTED",
+            "SCALED_PRESSURE": "no answer",
+            "GPS_RAW_INT": "accepted",
+            "DISTANCE_SENSOR": "accepted",
+        }
+        cmds = ap.commands
+        assert {c.command for c in cmds} == {R.MAV_CMD_SET_MESSAGE_INTERVAL}
+        assert all((c.get_srcSystem(), c.get_srcComponent()) == (1, 191) for c in cmds)
+        assert all((c.target_system, c.target_component) == (1, 1) for c in cmds)
+        by_msg = {}
+        for c in cmds:
+            by_msg.setdefault(int(c.param1), []).append(c)
+        assert [len(by_msg[ids[n]]) for n in ids] == [1, 1, 3, 2, 1]
+        assert [c.confirmation for c in by_msg[ids["SCALED_PRESSURE"]]] == [0, 1, 2]
+        assert by_msg[ids["HIGHRES_IMU"]][0].param2 == 20_000  # interval in us
+        assert by_msg[ids["DISTANCE_SENSOR"]][0].param2 == 100_000
+        assert all(c.param7 == 0 for c in cmds)  # the flight stack's default address
+        warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+        assert any("refused ATTITUDE" in w and "UNSUPPORTED" in w for w in warnings)
+        assert any("no COMMAND_ACK for SCALED_PRESSURE" in w for w in warnings)
+        assert any("not granted" in w and "SCALED_PRESSURE no answer" in w for w in warnings)
+    finally:
+        sink.close(RunSummary())
+        ap_peer.close()
+
+
+def test_no_command_without_allow_commands():
+    ap_peer = Peer(sysid=1, compid=1)
+    ap = Autopilot(ap_peer, {})
+    sink = udp_sink(ap_peer)  # allow_commands defaults to False
+    try:
+        sink.start({})
+        assert run_until(sink, lambda: len(ap_peer.of("ALTITUDE")) >= 10)
+        assert ap_peer.last_from is not None and ap_peer.of("HEARTBEAT", 191)
+        assert not ap.commands and sink.requester is None
+        assert {m.get_type() for m in ap_peer.msgs} == {"HEARTBEAT", "ALTITUDE"}
+    finally:
+        sink.close(RunSummary())
+        ap_peer.close()
+
+
+def test_no_command_before_an_autopilot_is_heard(caplog):
+    gcs_peer = Peer(sysid=255, compid=190)
+    gcs_peer.handler = lambda p, m: (
+        p.send(R.MAVLink_heartbeat_message(R.MAV_TYPE_GCS, R.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
+        if m.get_type() == "HEARTBEAT" else None)
+    sink = udp_sink(gcs_peer, allow_commands=True, command_timeout_s=0.05)
+    try:
+        sink.start({})
+        assert run_until(sink, lambda: len(gcs_peer.of("ALTITUDE")) >= 10)
+        assert sink.requester.target is None and not gcs_peer.of("COMMAND_LONG")
+        with caplog.at_level(logging.WARNING, logger="mavnav.sinks.mavlink_out"):
+            sink.close(RunSummary())
+        assert any("not sent (no autopilot heard)" in r.getMessage() for r in caplog.records)
+    finally:
+        gcs_peer.close()
+
+
+def test_commands_on_the_input_link_use_the_sources_tap():
+    from pymavlink import mavutil
+
+    vehicle = Peer(sysid=3, compid=1)
+    ap = Autopilot(vehicle, {})
+    link = mavutil.mavlink_connection("udpin:127.0.0.1:0")
+    taps = []
+    rates = (parse_rate("HIGHRES_IMU:50"), parse_rate("ATTITUDE:50"))
+    try:
+        port = link.port.getsockname()[1]
+        vehicle.send(autopilot_heartbeat(), ("127.0.0.1", port))
+        sink = MavlinkOutSink(None, EmitConfig(sysid=3, allow_commands=True, message_rates=rates,
+                                               command_timeout_s=0.2), use_input_link=True)
+
+        def pump():  # what the live source does with the replies: decode and hand them on
+            seen = []
+            while True:
+                m = link.recv_msg()
+                if m is None:
+                    return seen
+                seen.append(m.get_type())
+                if m.get_type() in ("HEARTBEAT", "COMMAND_ACK"):
+                    for cb in taps:
+                        cb(m)
+
+        deadline = time.monotonic() + 5
+        while "HEARTBEAT" not in pump() and time.monotonic() < deadline:
+            link.select(0.05)
+        sink.start({"link": link, "link_tap": taps.append})
+        assert len(taps) == 1
+        vehicle.send(autopilot_heartbeat(), ("127.0.0.1", port))  # heard through the tap
+
+        def done():
+            pump()
+            return sink.requester.done
+
+        assert run_until(sink, done)
+        assert sink.requester.results == {"HIGHRES_IMU": "accepted", "ATTITUDE": "accepted"}
+        assert [int(c.param1) for c in ap.commands] == [r.msg_id for r in rates]
+        assert all(c.target_system == 3 for c in ap.commands)
+        sink.close(RunSummary())
+    finally:
+        link.close()
+        vehicle.close()
+
+
+def test_input_link_without_a_tap_sends_no_command(caplog):
+    from pymavlink import mavutil
+
+    vehicle = Peer(sysid=1, compid=1)
+    ap = Autopilot(vehicle, {})
+    link = mavutil.mavlink_connection("udpin:127.0.0.1:0")
+    try:
+        vehicle.send(autopilot_heartbeat(), ("127.0.0.1", link.port.getsockname()[1]))
+        deadline = time.monotonic() + 5
+        while link.recv_match(type="HEARTBEAT", blocking=True, timeout=0.1) is None and time.monotonic() < deadline:
+            pass
+        sink = MavlinkOutSink(None, EmitConfig(allow_commands=True), use_input_link=True)
+        with caplog.at_level(logging.WARNING, logger="mavnav.sinks.mavlink_out"):
+            sink.start({"link": link})
+        assert any("link_tap" in r.getMessage() for r in caplog.records)
+        assert run_until(sink, lambda: len(vehicle.of("ALTITUDE", 191)) >= 10)
+        assert not ap.commands
+        sink.close(RunSummary())
+    finally:
+        link.close()
+        vehicle.close()
+
+
+@pytest.mark.parametrize("spec,match", [
+    ("HIGHRES_IMU", "NAME:HZ"), ("NO_SUCH_MSG:5", "no MAVLink message named NO_SUCH_MSG"),
+    ("ATTITUDE:fast", "not a number"), ("ATTITUDE:0", r"\(0, 1000\]"), ("ATTITUDE:nan", r"\(0, 1000\]"),
+])
+def test_wrong_rate_requests_are_refused_by_name(spec, match):
+    with pytest.raises(ConfigError, match=match):
+        parse_rate(spec)
+
+
+def test_default_rates_name_real_messages():
+    reqs = [parse_rate(s) for s in DEFAULT_RATES]
+    assert [r.msg_id for r in reqs] == [105, 30, 29, 24, 132]
+    assert parse_rate("rangefinder:10").msg_id == 173  # ArduPilot's dialect too
