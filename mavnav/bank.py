@@ -473,6 +473,14 @@ class ChannelBank:
         return BankStep(ep.t_us, self._inn.copy(), self._sdiag.copy(), self._s12.copy(),
                         self._nis.copy(), self._dof.copy())
 
+    def height_cov(self, idx) -> list[list[float]]:
+        """Error covariance of the heights of channels ``idx`` (with cross terms)."""
+        P, Pc = self.P, self.Pc
+        hh = {(a, a): P[a, 0, 0] for a in idx}
+        for p, (i, j) in enumerate(PAIRS):
+            hh[(i, j)] = hh[(j, i)] = Pc[p, 0, 0]
+        return [[float(hh[(a, b)]) for b in idx] for a in idx]
+
     def _set_cross(self, a: int, b: int, M: np.ndarray) -> None:
         for p, (i, j) in enumerate(PAIRS):
             if (i, j) == (a, b):

@@ -31,28 +31,28 @@ class InsConfig(_Section):
 
     sigma_a_mps2: float = Field(0.1, gt=0)  # RMS of the acceleration noise
     alpha_a_per_s: float = Field(1.0, gt=0)  # spectrum width of that noise
-    bias_rw_mps2_per_sqrt_s: float = Field(0.0, ge=0)  # random walk on da (0: constant, as the paper)
+    bias_rw_mps2_per_sqrt_s: float = Field(0.002, ge=0)  # random walk on da (0: constant, as the paper)
 
 
 class BaroConfig(_Section):
     """Barometric altimeter error model (MODEL.md eq. 3-5)."""
 
-    sigma_bb_m: float = Field(1.0, gt=0)  # RMS of the Gauss-Markov noise u
-    gamma_bb_per_s: float = Field(10.0, gt=0)  # its inverse correlation time
-    bias_rw_m_per_sqrt_s: float = Field(0.0, ge=0)  # random walk on dH (0: constant, as the paper)
+    sigma_bb_m: float = Field(0.5, gt=0)  # RMS of the Gauss-Markov noise u
+    gamma_bb_per_s: float = Field(0.5, gt=0)  # its inverse correlation time
+    bias_rw_m_per_sqrt_s: float = Field(0.01, ge=0)  # random walk on dH (0: constant, as the paper)
 
 
 class GnssConfig(_Section):
-    sigma_z_m: float = Field(5.0, gt=0)  # vertical noise when v_acc is not used
+    sigma_z_m: float = Field(2.0, gt=0)  # vertical noise when v_acc is not used
     use_v_acc: bool = True  # take sigma from the receiver's v_acc when it reports one
     v_acc_floor_m: float = Field(0.3, ge=0)  # never trust a receiver more than this
 
 
 class RangefinderConfig(_Section):
-    sigma_m: float = Field(0.1, gt=0)
+    sigma_m: float = Field(0.05, gt=0)
     # Height-proportional part of the noise (scale error, uneven ground): the
     # sigma used is sqrt(sigma_m^2 + (scale_sigma_frac * height)^2).
-    scale_sigma_frac: float = Field(0.0, ge=0)
+    scale_sigma_frac: float = Field(0.03, ge=0)
 
 
 class SensorsConfig(_Section):
@@ -176,6 +176,10 @@ class MonitorConfig(_Section):
     window_s: float = Field(5.0, gt=0)
     window_prob: float = Field(1e-4, gt=0, lt=0.5)
     window_min_samples: int = Field(10, ge=2)
+    # Also flag a source whose innovations are too *small* (a frozen sensor, or
+    # a noise model far too pessimistic). Off by default: receivers report
+    # conservative accuracies, and stuck sensors are caught at ingestion.
+    window_low_test: bool = False
     # A single baro sample this improbable (chi-square, 1 dof) is a baro jump:
     # an alarm at once, so the level is far stricter than gate_prob.
     baro_jump_prob: float = Field(1e-8, gt=0, lt=0.5)

@@ -82,6 +82,9 @@ class AdaptiveLogic:
         self.consistent_since: dict[str, Optional[int]] = {"gnss": None, "rangefinder": None, "baro_ins": None}
         self.last_nu2 = {GNSS: math.nan, RNG: math.nan}
         self.last_baro_nu2 = math.nan
+        self.level_since: Optional[int] = None
+        self.level_txt = ""
+        self.last_baro_m: Optional[float] = None
         self.bank.baro_on[:] = True
         self.pending_raw: dict[int, Optional[tuple]] = {GNSS: None, RNG: None}
         self.last_feedback_us = t_us
@@ -117,11 +120,39 @@ class AdaptiveLogic:
                 self.last_accept_us[c] = t
         if ep.baro_m is not None:
             self.last_baro_us = t
+            self.last_baro_m = ep.baro_m
             if "baro_ins" not in self.excluded:
                 reject = self._judge_baro(ep)
                 if reject:
                     changes["baro_restart"] = True  # no baro row anywhere; differencing restarts
         return dataclasses.replace(ep, **changes) if changes else ep
+
+    def _baro_level(self, t: int) -> tuple[bool, bool]:
+        """Level test of the baro against an anchored channel's ``H + dH``.
+
+        The differenced baro row is nearly blind to a slowly growing offset
+        (its sensitivity to the level is ``1 - phi_u``) and the feedback would
+        fold such an offset into the reference's bias; the level residual
+        ``baro - (H + dH)`` of a channel held by GNSS or the rangefinder sees
+        it directly. Returns (exceeded now, confirmed for persist_s).
+        """
+        c = self._anchor()
+        if c == BARO or self.last_baro_m is None or "baro_ins" in self.excluded:
+            self.level_since = None
+            return False, False
+        bank = self.bank
+        x, P = bank.x[c], bank.P[c]
+        r = self.last_baro_m - (x[0] + x[2])
+        var = P[0, 0] + P[2, 2] + 2.0 * P[0, 2] + self.bank.model.sigma_bb_m ** 2
+        thr = self.k_cmp * math.sqrt(var)
+        if abs(r) <= thr:
+            self.level_since = None
+            return False, False
+        if self.level_since is None:
+            self.level_since = t
+        self.level_txt = (f"baro {r:+.2f} m from the {CHANNEL_LABEL[c]} channel's H + dH "
+                          f"(threshold {thr:.2f} m)")
+        return True, t - self.level_since >= self.persist_us
 
     def _anchor(self) -> int:
         """The channel whose view of the baro is most trustworthy: the one with
@@ -176,7 +207,7 @@ class AdaptiveLogic:
         lo, hi = chi2_window(w.n, self.m.window_prob)
         if w.total > hi:
             return "high", f"innovations too large over {self.m.window_s:g} s (sum {w.total:.0f} > {hi:.0f})", lo, hi
-        if w.total < lo:
+        if w.total < lo and self.m.window_low_test:
             return "low", f"innovations too small over {self.m.window_s:g} s (sum {w.total:.1f} < {lo:.1f})", lo, hi
         return "ok", "", lo, hi
 
@@ -209,7 +240,8 @@ class AdaptiveLogic:
         wv, wreason, lo, hi = self._window_verdict("baro_ins")
         verdicts["baro_ins"] = (lo, hi)
         brej = self.windows["baro_ins"].rejected
-        baro_suspect = False
+        level_now, level_confirmed = self._baro_level(t) if self.f.isolation_2of3 else (False, False)
+        baro_suspect = level_now
         if t - self.last_baro_us > self.stale_baro_us:
             ev = tr.set("unavailable", t, "no recent baro")
         elif "baro_ins" in self.excluded:
@@ -222,12 +254,15 @@ class AdaptiveLogic:
         elif wv == "high" and self._anchor() != BARO:
             ev = self._exclude("baro_ins", t, wreason + f" (baro in the {CHANNEL_LABEL[self._anchor()]} channel)")
             baro_suspect = True
+        elif level_confirmed:
+            ev = self._exclude("baro_ins", t, self.level_txt)
+            baro_suspect = True
         elif "baro_ins" in blame:
             ev = self._exclude("baro_ins", t, blame["baro_ins"])
             baro_suspect = True
-        elif "baro_ins" in caution or wv != "ok":
-            ev = tr.set("caution", t, caution.get("baro_ins") or wreason)
-            baro_suspect = wv != "ok"
+        elif "baro_ins" in caution or wv != "ok" or level_now:
+            ev = tr.set("caution", t, caution.get("baro_ins") or wreason or self.level_txt)
+            baro_suspect = baro_suspect or wv != "ok"
         else:
             ev = tr.set("nominal", t, "consistent")
         if ev is not None:
@@ -263,8 +298,7 @@ class AdaptiveLogic:
         idx = [c for c in range(3) if used[c]]
         h, sigma = math.nan, math.nan
         if idx:
-            cov = np.array([[bank.cross(a, b)[0, 0] for b in idx] for a in idx])
-            h, sigma, _ = fuse_heights(bank.x[idx, 0], cov, self.f.inverse_variance)
+            h, sigma, _ = fuse_heights([bank.x[c, 0] for c in idx], bank.height_cov(idx), self.f.inverse_variance)
         if self.f.validated_feedback:
             self._feedback(t, avail)
         else:
@@ -348,8 +382,7 @@ class AdaptiveLogic:
                if c != exclude and n not in self.excluded and bank.P[c, 0, 0] <= self.m.max_channel_sigma_m ** 2]
         if not idx:
             return None
-        cov = np.array([[bank.cross(a, b)[0, 0] for b in idx] for a in idx])
-        h, s, _ = fuse_heights(bank.x[idx, 0], cov, True)
+        h, s, _ = fuse_heights([bank.x[c, 0] for c in idx], bank.height_cov(idx), True)
         return h, s
 
     def _maybe_readmit_aux(self, c: int, name: str, t: int, avail):
@@ -417,15 +450,14 @@ class AdaptiveLogic:
         if t - self.last_feedback_us < self.feedback_us:
             return
         self.last_feedback_us = t
-        if "baro_ins" in self.excluded:
-            return
+        if "baro_ins" in self.excluded or self.trackers["baro_ins"].state != "nominal":
+            return  # never fold a suspect baro into the reference's bias
         src = self._validated(t, avail)
         if not src:
             return
         bank = self.bank
-        cov = np.array([[bank.cross(a, b)[0, 0] for b in src] for a in src])
-        _, _, w = fuse_heights(bank.x[src, 0], cov, True)
-        bank.feedback(BARO, list(src), w, inflation=self.m.feedback_inflation)
+        _, _, w = fuse_heights([bank.x[c, 0] for c in src], bank.height_cov(src), True)
+        bank.feedback(BARO, list(src), np.asarray(w), inflation=self.m.feedback_inflation)
 
     def _paper_feedback(self, idx) -> None:
         """Without validated feedback: the paper's, every epoch, from the output."""

@@ -93,6 +93,7 @@ class Monitor:
         self._link_lost = False
         self._pending: list[AlarmEvent] = []
         self._last_t_us: Optional[int] = None
+        self._rates_checked_us: Optional[int] = None
 
     # ------------------------------------------------------------------ fold
 
@@ -152,6 +153,9 @@ class Monitor:
             self.input = SourceTracker("input", t_us, self.boot)
         if self._link_lost:
             return None
+        if self._rates_checked_us is not None and t_us - self._rates_checked_us < 1_000_000:
+            return None
+        self._rates_checked_us = t_us
         m = self.mcfg
         need_aux = max(m.alarm_rejections, 1) / m.time_to_alarm_s
         need = {"imu": 10.0, "baro": 5.0, "gnss": need_aux, "rng": need_aux}
@@ -181,24 +185,21 @@ class Monitor:
             events.append(ev)
         bank = self.bank
         chans = []
+        xs = bank.x.tolist()
+        phh = bank.P[:, 0, 0].tolist()
+        ivar = step.innovation_var.tolist()
+        inn = step.innovation.tolist()
+        nis = step.nis.tolist()
+        dof = step.dof.tolist()
         for c, name in enumerate(CHANNEL_NAMES):
-            x = bank.x[c]
-            P = bank.P[c]
-            sb, sa = step.innovation_var[c]
-            ib, ia = step.innovation[c]
+            x = xs[c]
+            sb, sa = ivar[c]
+            ib, ia = inn[c]
             chans.append(ChannelReport(
-                name=name,
-                height_ref_m=float(x[0]),
-                sigma_height_m=math.sqrt(max(P[0, 0], 0.0)),
-                vel_up_mps=float(x[1]),
-                baro_bias_m=float(x[2]),
-                acc_bias_mps2=float(x[3]),
-                available=bool(d.available[c]),
-                used=bool(d.used[c]),
-                nis=float(step.nis[c]),
-                dof=int(step.dof[c]),
-                norm_innov_baro=float(ib / math.sqrt(sb)) if sb == sb else math.nan,
-                norm_innov_aux=float(ia / math.sqrt(sa)) if sa == sa else math.nan,
+                name, x[0], math.sqrt(max(phh[c], 0.0)), x[1], x[2], x[3],
+                bool(d.available[c]), bool(d.used[c]), nis[c], dof[c],
+                ib / math.sqrt(sb) if sb == sb else math.nan,
+                ia / math.sqrt(sa) if sa == sa else math.nan,
             ))
         sources = dict(d.sources)
         sources["input"] = self.input.status()

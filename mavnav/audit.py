@@ -1,0 +1,156 @@
+"""Headless audit of one recorded log: what happened, and whether it can be trusted.
+
+:func:`audit_file` runs the same pipeline as ``run`` and ``replay`` over a
+tlog and returns a JSON-ready dict (the ``files[]`` entry of ``mavnav audit
+--json``), with a stable core::
+
+    {"path", "duration_s",
+     "alarms": [{"t_s", "source", "state", "reason", "cleared_t_s", "boot"}],
+     "rates_hz": {...}, "availability": {...}, "fused_vs_autopilot_rms_m"}
+
+and more keys beside it (``inputs``, ``notes``, ``ingest``...). ``t_s`` is
+vehicle time, on the same clock as the CSV.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from pathlib import Path
+from typing import Iterable, Optional
+
+from .config import Config
+from .errors import MavnavError
+from .ingest import TlogSource
+from .pipeline import run
+from .report import SOURCES, AlarmEvent, EpochReport, RunSummary
+from .samples import BaroHeight, GnssHeight, RangeHeight, SpecificForceUp
+from .sinks.base import Sink
+
+INPUT_KINDS = {SpecificForceUp: "imu", BaroHeight: "baro", GnssHeight: "gnss", RangeHeight: "rangefinder"}
+
+
+def required_rates_hz(cfg: Config) -> dict[str, float]:
+    """Input rates the time-to-alarm needs (the monitor's own rule)."""
+    m = cfg.monitor
+    aux = max(m.alarm_rejections, 1) / m.time_to_alarm_s
+    return {"imu": 10.0, "baro": 5.0, "gnss": aux, "rangefinder": aux}
+
+
+class AuditSink(Sink):
+    """Collects what the audit reports while the pipeline runs."""
+
+    name = "audit"
+
+    def __init__(self) -> None:
+        self.epochs = 0
+        self.state_counts: dict[str, Counter] = {s: Counter() for s in SOURCES}
+        self.used_counts: Counter = Counter()
+        self.overall: Counter = Counter()
+        self.alarms: list[dict] = []
+        self._open: dict[tuple[int, str], list[dict]] = {}
+        self.sq_err = 0.0
+        self.n_err = 0
+        self.max_abs_err = 0.0
+        self.input_counts: Counter = Counter()
+        self.input_span: dict[str, list] = {}
+
+    def sample(self, s) -> None:
+        kind = INPUT_KINDS.get(type(s))
+        if kind is not None:
+            self.input_counts[kind] += 1
+
+    def epoch(self, r: EpochReport) -> None:
+        self.epochs += 1
+        for name, st in r.sources.items():
+            self.state_counts[name][st.state] += 1
+        for ch in r.channels:
+            if ch.used:
+                self.used_counts[ch.name] += 1
+        self.overall[r.overall] += 1
+        d = r.height_fused_m - r.autopilot_height_ref_m
+        if d == d:
+            self.sq_err += d * d
+            self.n_err += 1
+            self.max_abs_err = max(self.max_abs_err, abs(d))
+
+    def alarm(self, ev: AlarmEvent) -> None:
+        key = (ev.boot, ev.source)
+        if ev.state in ("caution", "alarm"):
+            entry = {"t_s": round(ev.t_s, 6), "source": ev.source, "state": ev.state, "reason": ev.reason,
+                     "cleared_t_s": None, "boot": ev.boot}
+            self.alarms.append(entry)
+            self._open.setdefault(key, []).append(entry)
+        elif ev.state == "nominal":
+            for entry in self._open.pop(key, []):
+                entry["cleared_t_s"] = round(ev.t_s, 6)
+
+    def availability(self) -> dict:
+        out = {}
+        n = max(self.epochs, 1)
+        for name, c in self.state_counts.items():
+            out[name] = {st: round(c[st] / n, 4) for st in ("nominal", "caution", "unavailable", "alarm")}
+        out["channels_used"] = {ch: round(self.used_counts[ch] / n, 4) for ch in ("gnss", "rangefinder", "baro")}
+        out["overall"] = {st: round(self.overall[st] / n, 4) for st in ("nominal", "caution", "unavailable", "alarm")}
+        return out
+
+
+def _notes(result: dict, sink: AuditSink, cfg: Config) -> list[str]:
+    notes = []
+    for kind, ok in result["inputs"]["supports_time_to_alarm"].items():
+        rate = result["inputs"]["rates_hz"][kind]
+        if rate == 0:
+            notes.append(f"no {kind} samples: its channel is unavailable")
+        elif not ok:
+            need = required_rates_hz(cfg)[kind]
+            notes.append(f"{kind} at {rate:.1f} Hz cannot support a {cfg.monitor.time_to_alarm_s:g} s alarm "
+                         f"(needs {need:.0f} Hz)")
+    if sink.epochs == 0:
+        notes.append("no filter epoch: the log lacks IMU or baro data the estimator needs")
+    if result["fused_vs_autopilot_rms_m"] is None:
+        notes.append("no autopilot height to compare with")
+    return notes
+
+
+def audit_file(path: str | Path, cfg: Config, sysid: Optional[int] = None,
+               extra_sinks: Iterable[Sink] = ()) -> dict:
+    """Audit one tlog. Raises :class:`MavnavError` (one line) if it is unreadable."""
+    src = TlogSource(path, cfg.ingest, sysid=sysid)
+    sink = AuditSink()
+    summary: RunSummary = run(src, cfg, [sink, *extra_sinks], info={"source": str(path), "live": False})
+    stats = src.stats
+    duration = stats.duration_s
+    rates = {k: (round(sink.input_counts[k] / duration, 3) if duration > 0 else 0.0)
+             for k in ("imu", "baro", "gnss", "rangefinder")}
+    need = required_rates_hz(cfg)
+    result = {
+        "path": str(path),
+        "duration_s": round(duration, 3),
+        "alarms": sink.alarms,
+        "rates_hz": {k: round(v, 3) for k, v in sorted(stats.rates_hz.items())},
+        "availability": sink.availability(),
+        "fused_vs_autopilot_rms_m": (round(math.sqrt(sink.sq_err / sink.n_err), 4) if sink.n_err else None),
+        "fused_vs_autopilot_max_m": (round(sink.max_abs_err, 4) if sink.n_err else None),
+        "epochs": summary.epochs,
+        "reboots": summary.reboots,
+        "mode": cfg.monitor.mode,
+        "inputs": {
+            "rates_hz": rates,
+            "required_hz": need,
+            "supports_time_to_alarm": {k: (rates[k] >= need[k]) for k in rates},
+            "time_to_alarm_s": cfg.monitor.time_to_alarm_s,
+        },
+        "sink_failures": summary.sink_failures,
+        "ingest": stats.to_dict(),
+    }
+    result["notes"] = _notes(result, sink, cfg)
+    return result
+
+
+def worst_state(result: dict) -> str:
+    """The worst alarm state a file reached: 'alarm', 'caution' or 'nominal'."""
+    states = {a["state"] for a in result.get("alarms", [])}
+    return "alarm" if "alarm" in states else "caution" if "caution" in states else "nominal"
+
+
+__all__ = ["audit_file", "AuditSink", "worst_state", "required_rates_hz", "MavnavError"]
