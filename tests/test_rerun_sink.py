@@ -130,7 +130,12 @@ class Capture(Sink):
         self.alarms.append(e)
 
 
+def fin(x: float) -> float:
+    return x if math.isfinite(x) else NAN
+
+
 def expected_scalars(epochs, samples, ns=lambda r: r.t_us * 1000) -> dict:
+    """Rows the viewer should hold; non-finite values are NaN, invalid pairs NaN."""
     exp = defaultdict(list)
     for r in epochs:
         t = ns(r)
@@ -138,16 +143,18 @@ def expected_scalars(epochs, samples, ns=lambda r: r.t_us * 1000) -> dict:
             exp[f"heights/channel/{ch.name}"].append((t, (ch.height_ref_m,)))
             exp[f"integrity/nis/{ch.name}"].append((t, (ch.nis if ch.dof > 0 else NAN,)))
             exp[f"integrity/norm_innov/{ch.name}"].append((t, (ch.norm_innov_baro, ch.norm_innov_aux)))
-        exp["heights/fused"].append((t, (r.height_fused_m,)))
-        exp["heights/fused_sigma"].append((t, (r.height_fused_m - r.sigma_fused_m, r.height_fused_m + r.sigma_fused_m)))
+        h, s = fin(r.height_fused_m), fin(r.sigma_fused_m)
+        exp["heights/fused"].append((t, (h,)))
+        exp["heights/fused_sigma"].append((t, (h - s, h + s)))
         for p in r.pairs:
-            exp[f"integrity/pairs/{p.name}/diff"].append((t, (p.diff_m,)))
-            exp[f"integrity/pairs/{p.name}/threshold"].append((t, (p.threshold_m, -p.threshold_m)))
+            d, thr = (p.diff_m, p.threshold_m) if p.valid else (NAN, NAN)
+            exp[f"integrity/pairs/{p.name}/diff"].append((t, (d,)))
+            exp[f"integrity/pairs/{p.name}/threshold"].append((t, (thr, -thr)))
         for src, st in r.sources.items():
             w = (st.window_stat, st.window_low, st.window_high)
             if not all(math.isnan(x) for x in w):
                 exp[f"integrity/window/{src}"].append((t, w))
-        exp["integrity/vpl"].append((t, (r.vpl_m,)))
+        exp["integrity/vpl"].append((t, (fin(r.vpl_m),)))
         exp["integrity/alert_limit"].append((t, (r.alert_limit_m,)))
     raw = {BaroHeight: ("heights/raw/baro", "height_ref_m"), GnssHeight: ("heights/raw/gnss", "height_ref_m"),
            RangeHeight: ("heights/raw/rangefinder", "height_agl_m"),
@@ -262,12 +269,12 @@ def _report(k: int, t_us: int, boot: int, gnss_state: str) -> EpochReport:
                       dof=0 if k % 3 == 0 else 2, norm_innov_baro=0.1 * k, norm_innov_aux=NAN if i == 2 else -0.1 * k)
         for i, n in enumerate(CHANNEL_NAMES)
     )
-    pairs = tuple(PairReport(p, diff_m=0.2 * k - j, threshold_m=3.0 + j, exceeded=False, valid=True)
+    pairs = tuple(PairReport(p, diff_m=0.2 * k - j, threshold_m=3.0 + j, exceeded=False, valid=k % 5 != 1)
                   for j, p in enumerate(PAIR_NAMES))
     sources = {s: SourceStatus("nominal", 0.0, "") for s in SOURCES}
     sources["gnss"] = SourceStatus(gnss_state, 0.0, "test", window_stat=1.5 * k, window_low=0.5, window_high=9.0)
     return EpochReport(t_us=t_us, boot=boot, height_fused_m=NAN if k == 4 else 10.0 + 0.01 * k, sigma_fused_m=0.4,
-                       channels=chans, pairs=pairs, sources=sources, overall=gnss_state, vpl_m=2.0 + 0.1 * k,
+                       channels=chans, pairs=pairs, sources=sources, overall=gnss_state, vpl_m=math.inf if k == 2 else 2.0 + 0.1 * k,
                        alert_limit_m=5.0)
 
 

@@ -5,15 +5,16 @@ colour mean the same thing in every view (the GNSS channel is the same blue
 in the heights, the NIS and the state lanes). The layout is a
 :func:`blueprint` sent once at the start of a run.
 
-Entity paths (all on the ``vehicle_time`` timeline, seconds of vehicle time)::
+Entity paths (all on the ``vehicle_time`` timeline, seconds of vehicle time;
+non-finite values are logged as NaN, a gap in the line)::
 
     heights/raw/{baro,gnss,rangefinder}   raw sensor heights (points; rangefinder is AGL)
     heights/autopilot                     the autopilot's own estimate
     heights/channel/{gnss,rangefinder,baro}  each channel's height estimate
     heights/fused                         fused height
     heights/fused_sigma                   [fused - sigma, fused + sigma]
-    integrity/pairs/<pair>/diff           channel difference H_a - H_b (PAIR_NAMES)
-    integrity/pairs/<pair>/threshold      [+threshold, -threshold]
+    integrity/pairs/<pair>/diff           channel difference H_a - H_b (PAIR_NAMES), while valid
+    integrity/pairs/<pair>/threshold      [+threshold, -threshold], while valid
     integrity/nis/<channel>               normalised innovation squared of the epoch
     integrity/norm_innov/<channel>        [baro row, aux row] innovation / sigma
     integrity/window/<source>             [window statistic, low bound, high bound]
@@ -215,7 +216,7 @@ def blueprint(live: bool, window_s: float = 30.0) -> rrb.Blueprint:
         rrb.Horizontal(nis, window, vpl),
         states,
         rrb.Horizontal(rates, rejected, log, column_shares=[1, 1, 2]),
-        row_shares=[3, 2, 2, 2],
+        row_shares=[3, 2, 3, 2],
     )
     return rrb.Blueprint(
         layout,

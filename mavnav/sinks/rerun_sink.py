@@ -482,11 +482,19 @@ class RerunSink(Sink):
 
 
 def _f(x) -> float:
-    return float(x) if x is not None else math.nan
+    """A plottable float: None and +-inf become NaN (a gap in the line)."""
+    if x is None:
+        return math.nan
+    x = float(x)
+    return x if math.isfinite(x) else math.nan
 
 
 def epoch_rows(r: EpochReport) -> list[tuple[str, tuple[float, ...]]]:
-    """Scalar rows of one epoch: (entity, values)."""
+    """Scalar rows of one epoch: (entity, values).
+
+    Non-finite values (an unbounded VPL, no fused height) are NaN, a gap; a
+    pair's difference and threshold are NaN while the pair is not valid.
+    """
     rows: list[tuple[str, tuple[float, ...]]] = []
     for ch in r.channels:
         rows.append((bp.channel_entity(ch.name), (_f(ch.height_ref_m),)))
@@ -495,9 +503,10 @@ def epoch_rows(r: EpochReport) -> list[tuple[str, tuple[float, ...]]]:
     h, s = _f(r.height_fused_m), _f(r.sigma_fused_m)
     rows.append(("heights/fused", (h,)))
     rows.append(("heights/fused_sigma", (h - s, h + s)))
-    for p in r.pairs:
-        rows.append((bp.pair_entity(p.name, "diff"), (_f(p.diff_m),)))
-        rows.append((bp.pair_entity(p.name, "threshold"), (_f(p.threshold_m), -_f(p.threshold_m))))
+    for p in r.pairs:  # shown while both channels are available (the test is meaningless otherwise)
+        diff, thr = (_f(p.diff_m), _f(p.threshold_m)) if p.valid else (math.nan, math.nan)
+        rows.append((bp.pair_entity(p.name, "diff"), (diff,)))
+        rows.append((bp.pair_entity(p.name, "threshold"), (thr, -thr)))
     for src in SOURCES:
         st = r.sources.get(src)
         if st is None:
