@@ -1,0 +1,189 @@
+"""A real ground set-up: vehicle <-> MAVProxy <-> mavnav, all on 127.0.0.1.
+
+The vehicle is a pymavlink peer that replays a simulated tlog (paced, 5x
+real time) into MAVProxy's master port and answers commands. MAVProxy
+(``--daemon --non-interactive``) forwards the telemetry to its outputs and
+what its outputs send back to the vehicle, as it does for any ground
+station. mavnav listens on one output with :class:`~mavnav.ingest.LiveSource`
+through the pipeline, and emits either on a second MAVProxy port
+(``--emit udpout:...``) or back out of its input link (``--emit input``).
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import common as mavlink2
+
+from mavnav.config import Config
+from mavnav.ingest import LiveSource
+from mavnav.pipeline import run
+from mavnav.report import RunSummary
+from mavnav.sim import load_scenario, simulate
+from mavnav.sinks.mavlink_commands import parse_rate
+from mavnav.sinks.mavlink_out import EmitConfig, MavlinkOutSink
+from test_emit_commands import Autopilot
+from test_emit_sink import Peer, feed, reports_every
+
+pytest.importorskip("MAVProxy", reason="MAVProxy is not installed (pip install MAVProxy)")
+
+SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"
+SPEED = 5.0
+REPLAY_S = 12.0
+
+
+def free_udp_port() -> int:
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+@pytest.fixture(scope="module")
+def ground(tmp_path_factory):
+    """MAVProxy between a vehicle peer and three outputs; yields the ports and the vehicle."""
+    tmp = tmp_path_factory.mktemp("mavproxy")
+    vehicle = Peer(sysid=1, compid=1)
+    master, live_in, emit_in, raw_in = (free_udp_port() for _ in range(4))
+    env = dict(os.environ, HOME=str(tmp))
+    cmd = [sys.executable, "-m", "MAVProxy.mavproxy", f"--master=udpin:127.0.0.1:{master}",
+           f"--out=udpout:127.0.0.1:{live_in}",   # mavnav's input (LiveSource)
+           f"--out=udpin:127.0.0.1:{emit_in}",    # mavnav's own emit port
+           f"--out=udpout:127.0.0.1:{raw_in}",    # an input link for --emit input
+           "--daemon", "--non-interactive", "--nowait", "--streamrate=-1"]
+    log = open(tmp / "mavproxy.out", "w")
+    proc = subprocess.Popen(cmd, cwd=tmp, env=env, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+    try:
+        # MAVProxy is up when it answers the vehicle's heartbeat with its own
+        deadline = time.monotonic() + 30
+        hb = mavlink2.MAVLink_heartbeat_message(mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_PX4, 0, 0, 3, 3)
+        while not vehicle.of("HEARTBEAT") and time.monotonic() < deadline and proc.poll() is None:
+            vehicle.send(hb, ("127.0.0.1", master))
+            vehicle.wait_for(lambda: bool(vehicle.of("HEARTBEAT")), 0.2)
+        if not vehicle.of("HEARTBEAT"):
+            pytest.fail(f"MAVProxy did not come up: {(tmp / 'mavproxy.out').read_text()[-2000:]}")
+        yield {"master": master, "live_in": live_in, "emit_in": emit_in, "raw_in": raw_in, "vehicle": vehicle,
+               "dir": tmp}
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5)
+        log.close()
+        vehicle.close()
+
+
+@pytest.fixture(scope="module")
+def frames(tmp_path_factory):
+    """(vehicle-clock offset s, frame bytes) of a simulated hover, its first REPLAY_S seconds."""
+    res = simulate(load_scenario(SCENARIOS / "px4_hover_gnss_step.yaml"), 3)
+    path = tmp_path_factory.mktemp("frames") / "hover.tlog"
+    path.write_bytes(res.tlog)
+    log = mavutil.mavlink_connection(str(path))
+    out = []
+    t0 = None
+    while True:
+        m = log.recv_msg()
+        if m is None:
+            break
+        t0 = m._timestamp if t0 is None else t0
+        if m._timestamp - t0 > REPLAY_S:
+            break
+        out.append((m._timestamp - t0, bytes(m.get_msgbuf())))
+    log.close()
+    return out
+
+
+def replay(vehicle: Peer, port: int, frames, stop: threading.Event) -> None:
+    start = time.monotonic()
+    for t, buf in frames:
+        if stop.is_set():
+            return
+        wait = start + t / SPEED - time.monotonic()
+        if wait > 0:
+            time.sleep(wait)  # pacing the vehicle's clock, not waiting for a result
+        vehicle.sock.sendto(buf, ("127.0.0.1", port))
+
+
+def test_mavnav_behind_mavproxy_reaches_the_vehicle(ground, frames):
+    vehicle: Peer = ground["vehicle"]
+    ap = Autopilot(vehicle, {105: [mavlink2.MAV_RESULT_UNSUPPORTED]})
+    source = LiveSource(f"udpin:127.0.0.1:{ground['live_in']}")
+    rates = (parse_rate("HIGHRES_IMU:50"), parse_rate("SCALED_PRESSURE:20"))
+    cfg = EmitConfig(allow_commands=True, message_rates=rates, command_timeout_s=0.5)
+    link = mavutil.mavlink_connection(f"udpout:127.0.0.1:{ground['emit_in']}", source_system=1,
+                                      source_component=191)
+    sink = MavlinkOutSink(link, cfg, description="udpout to MAVProxy")
+    result = {}
+    runner = threading.Thread(target=lambda: result.setdefault(
+        "summary", run(source, Config(), [sink], info={"live": True})), daemon=True)
+    stop = threading.Event()
+    replayer = threading.Thread(target=replay, args=(vehicle, ground["master"], frames, stop), daemon=True)
+    runner.start()
+    replayer.start()
+    try:
+        def from_mavnav(t):
+            return vehicle.of(t, compid=191)
+
+        ok = vehicle.wait_for(lambda: len(from_mavnav("ALTITUDE")) >= 10 and from_mavnav("STATUSTEXT")
+                              and sink.requester.done, timeout=REPLAY_S / SPEED + 15)
+        assert ok, (len(from_mavnav("ALTITUDE")), from_mavnav("STATUSTEXT"), sink.requester.results)
+    finally:
+        stop.set()
+        replayer.join(10)
+        source.close()
+        runner.join(10)
+    summary: RunSummary = result["summary"]
+    assert summary.epochs > 0 and not summary.sink_failures
+    hbs = from_mavnav("HEARTBEAT")
+    assert hbs and all(h.type == mavlink2.MAV_TYPE_ONBOARD_CONTROLLER and h.get_srcSystem() == 1 for h in hbs)
+    # the ALTITUDE the vehicle got is the monitor's height: near the simulated hover, on vehicle time
+    alts = from_mavnav("ALTITUDE")
+    assert all(0 <= a.time_usec <= REPLAY_S * 1e6 + 1e6 for a in alts)
+    assert all(-3.0 < a.altitude_local < 20.0 for a in alts if a.altitude_local == a.altitude_local)
+    texts = [m.text for m in from_mavnav("STATUSTEXT")]
+    assert all(t.startswith("mavnav ") and len(t) <= 50 for t in texts)
+    assert {e.source for e in summary.alarms} >= {t.split()[1] for t in texts}
+    # commands went through MAVProxy to the vehicle, and its ACKs came back
+    assert [int(c.param1) for c in ap.commands] == [105, 29]
+    assert all(c.command == 511 and c.target_system == 1 and c.target_component == 1 for c in ap.commands)
+    assert sink.requester.results == {"HIGHRES_IMU": "refused: UNSUPPORTED", "SCALED_PRESSURE": "accepted"}
+    # the vehicle got nothing else from mavnav
+    assert {m.get_type() for m in vehicle.msgs if m.get_srcComponent() == 191} == {
+        "HEARTBEAT", "ALTITUDE", "STATUSTEXT", "COMMAND_LONG"}
+    vehicle.handler = None
+
+
+def test_emit_input_goes_back_through_mavproxy(ground):
+    vehicle: Peer = ground["vehicle"]
+
+    def new():  # this test's epochs are at vehicle time 500 s on
+        return [a for a in vehicle.of("ALTITUDE", compid=191) if a.time_usec >= 500_000_000]
+
+    link = mavutil.mavlink_connection(f"udpin:127.0.0.1:{ground['raw_in']}")
+    try:
+        hb = mavlink2.MAVLink_heartbeat_message(mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_PX4, 0, 0, 4, 3)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline:  # the input link hears the vehicle through MAVProxy
+            vehicle.send(hb, ("127.0.0.1", ground["master"]))
+            if link.recv_match(type="HEARTBEAT", blocking=True, timeout=0.2) is not None:
+                break
+        sink = MavlinkOutSink(None, EmitConfig(sysid=1, compid=191), use_input_link=True)
+        sink.start({"link": link})
+        feed(sink, reports_every(0.02, 2.0, t0_s=500.0))
+        assert vehicle.wait_for(lambda: len(new()) == 10, timeout=10)
+        assert [a.time_usec for a in new()] == [500_000_000 + k * 200_000 for k in range(10)]
+        sink.close(RunSummary())
+    finally:
+        link.close()
