@@ -27,11 +27,13 @@ sends the same frames as the live run did):
 * STATUSTEXT at every alarm transition (:mod:`.mavlink_statustext`).
 * With ``debug_values``: NAMED_VALUE_FLOAT at the ALTITUDE rate
   (:data:`DEBUG_NAMES`).
-* With ``fusable``: ODOMETRY (331) at the ALTITUDE rate, the one message
-  here an autopilot fuses (PX4 as external vision, since estimator_type is
-  UNKNOWN; ArduPilot as external navigation). GLOBAL_POSITION_SENSOR (296)
-  exists in the dialect but needs latitude and longitude, which mavnav does
-  not estimate. Frame MAV_FRAME_LOCAL_NED, child MAV_FRAME_BODY_FRD;
+* With ``fusable``: ODOMETRY (331) at the ALTITUDE rate, for an autopilot
+  to fuse. PX4 takes ODOMETRY with estimator_type UNKNOWN as external vision
+  (height only with EKF2_EV_CTRL's vertical-position bit); ArduPilot's
+  external-navigation path expects a full pose, so a height-only ODOMETRY is
+  not known to be used there (not verified against either autopilot here).
+  GLOBAL_POSITION_SENSOR (296) exists in the installed dialects but needs
+  latitude and longitude, which mavnav does not estimate. Frame MAV_FRAME_LOCAL_NED, child MAV_FRAME_BODY_FRD;
   ``z = -height`` (down); x, y, velocities, rates and q[0] NaN (not
   provided); ``pose_covariance`` is diagonal with var(z) = sigma_fused^2 and
   the unprovided variances +inf (NaN in the first element would mean "whole
