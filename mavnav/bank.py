@@ -375,13 +375,15 @@ class ChannelBank:
             if c in (i, j):
                 self.Pc[p] = 0.0  # a fresh prior: independent of the others' errors
 
-    def reinit_from(self, c: int, src: int) -> None:
+    def reinit_from(self, c: int, src: int, extra_height_var: float = 0.0) -> None:
         """Re-initialise channel ``c`` as a copy of channel ``src`` (state,
-        covariance and cross-covariances: exact, the copy's error is the
-        source's). Used to readmit a channel mid-flight, where the prior of
-        the start would be far from the truth."""
+        covariance and cross-covariances), its height made less certain by an
+        independent ``extra_height_var`` (so it can settle onto its own
+        sensor; the covariances stay exact for that model). Used to readmit a
+        channel mid-flight, where the prior of the start would be far off."""
         self.x[c] = self.x[src]
         self.P[c] = self.P[src]
+        self.P[c, 0, 0] += extra_height_var
         self.baro_prev[c] = self.baro_prev[src]
         for j in range(N_CH):
             if j != c:

@@ -97,7 +97,7 @@ class FilterConfig(_Section):
 class ReferenceConfig(_Section):
     """Where a height reference comes from: config value, HOME_POSITION, or start-up."""
 
-    source: Literal["config", "home", "startup"] = "startup"
+    source: Literal["config", "home", "startup"] = "home"
     value: Optional[float] = None  # Pa for the baro reference, m for the GNSS reference
     startup_window_s: float = Field(2.0, gt=0)
     # With source "home": how long (vehicle time after the first sample that
@@ -183,6 +183,9 @@ class MonitorConfig(_Section):
     # A single baro sample this improbable (chi-square, 1 dof) is a baro jump:
     # an alarm at once, so the level is far stricter than gate_prob.
     baro_jump_prob: float = Field(1e-8, gt=0, lt=0.5)
+    # After a (re)start the filters converge for this long: gates still
+    # protect the states, but no window statistic or comparison raises alarms.
+    warmup_s: float = Field(5.0, ge=0)
     # A source in caution returns to nominal only after this long clean.
     clear_s: float = Field(1.0, ge=0)
     # Rejected samples in the window before a source is in caution / alarm.

@@ -34,3 +34,5 @@ def main() -> None:
 from . import covariance  # noqa: E402,F401
 from . import simulate  # noqa: E402,F401
 from . import inject  # noqa: E402,F401
+from . import run  # noqa: E402,F401
+from . import audit  # noqa: E402,F401

@@ -71,6 +71,11 @@ class LiveSource:
         self._norm = Normaliser(self.config, sysid, self.stats)
 
     @property
+    def mav(self):
+        """The underlying pymavlink connection (for sending back on the same link)."""
+        return self._conn
+
+    @property
     def local_address(self):
         """``(host, port)`` the link is bound to (sockets only; ``udpin:HOST:0`` picks a free port)."""
         port = getattr(self._conn, "port", None)

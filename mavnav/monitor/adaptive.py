@@ -64,6 +64,7 @@ class AdaptiveLogic:
         self.stale_us = {GNSS: int(m.stale_gnss_s * 1e6), RNG: int(m.stale_rng_s * 1e6)}
         self.stale_baro_us = int(m.stale_baro_s * 1e6)
         self.t0_us = 0
+        self.warmup_us = int(m.warmup_s * 1e6)
 
     # ------------------------------------------------------------------ state
 
@@ -87,6 +88,9 @@ class AdaptiveLogic:
         self.last_baro_m: Optional[float] = None
         self.bank.baro_on[:] = True
         self.pending_raw: dict[int, Optional[tuple]] = {GNSS: None, RNG: None}
+        self.sensor_var_floor = [0.0, 0.0, 0.0]
+        self.warm_until = {"gnss": t_us + self.warmup_us, "rangefinder": t_us + self.warmup_us,
+                           "baro_ins": t_us + self.warmup_us}
         self.last_feedback_us = t_us
         self.raw_check = RawAuxCheck(window_s=1.0, k=self.k_cmp)
 
@@ -104,6 +108,9 @@ class AdaptiveLogic:
                 continue
             self.last_seen_us[c] = t
             self.pending_raw[c] = (aux.height_m - aux.age_s * bank.x[c, 1], aux.sigma_m)
+            # the sensor's own 1-sigma includes slow errors the white-noise
+            # model averages away: no channel knows H better than its sensor
+            self.sensor_var_floor[c] = aux.sigma_m * aux.sigma_m
             field_name = "gnss" if c == GNSS else "rng"
             if name in self.excluded:
                 changes[field_name] = None  # the channel coasts; readmission decides later
@@ -112,7 +119,7 @@ class AdaptiveLogic:
             nu2 = r * r / S if S > 0 else math.inf
             self.last_nu2[c] = nu2
             reject = self.f.innovation_gating and nu2 > self.gate
-            if self.f.window_test or self.f.innovation_gating:
+            if (self.f.window_test or self.f.innovation_gating) and t >= self.warm_until[name]:
                 self.windows[name].push(t, nu2, reject)
             if reject:
                 changes[field_name] = None
@@ -154,6 +161,9 @@ class AdaptiveLogic:
                           f"(threshold {thr:.2f} m)")
         return True, t - self.level_since >= self.persist_us
 
+    def _warming(self, t: int) -> bool:
+        return t - self.t0_us < self.warmup_us
+
     def _anchor(self) -> int:
         """The channel whose view of the baro is most trustworthy: the one with
         an independent height sensor and the smallest height variance."""
@@ -174,7 +184,7 @@ class AdaptiveLogic:
             return False
         nu2 = r * r / S
         reject = self.f.innovation_gating and nu2 > self.baro_gate
-        if self.f.window_test or self.f.innovation_gating:
+        if (self.f.window_test or self.f.innovation_gating) and not self._warming(ep.t_us):
             self.windows["baro_ins"].push(ep.t_us, nu2, reject)
         self.last_baro_nu2 = nu2
         return reject
@@ -195,7 +205,7 @@ class AdaptiveLogic:
 
     def _thresholds(self) -> np.ndarray:
         if self.f.covariance_thresholds:
-            return self.k_cmp * diff_sigmas(self.bank)
+            return self.k_cmp * diff_sigmas(self.bank, self.sensor_var_floor)
         m = self.m
         return np.array([m.delta_gnss_m, m.delta_gnss_m, m.delta_ra_m])
 
@@ -231,7 +241,11 @@ class AdaptiveLogic:
             else:
                 self.exceed_since[p] = None
                 confirmed.append(False)
-        blame, caution = self._isolate(pairs, confirmed)
+        if self._warming(t):
+            blame, caution = {}, {}
+            self.exceed_since = [None, None, None]
+        else:
+            blame, caution = self._isolate(pairs, confirmed)
         events = []
         verdicts = {}
         # --- baro+INS first: a baro fault contaminates both aux channels, so
@@ -240,7 +254,8 @@ class AdaptiveLogic:
         wv, wreason, lo, hi = self._window_verdict("baro_ins")
         verdicts["baro_ins"] = (lo, hi)
         brej = self.windows["baro_ins"].rejected
-        level_now, level_confirmed = self._baro_level(t) if self.f.isolation_2of3 else (False, False)
+        level_now, level_confirmed = (self._baro_level(t) if self.f.isolation_2of3 and not self._warming(t)
+                                      else (False, False))
         baro_suspect = level_now
         if t - self.last_baro_us > self.stale_baro_us:
             ev = tr.set("unavailable", t, "no recent baro")
@@ -251,9 +266,6 @@ class AdaptiveLogic:
             ev = self._exclude("baro_ins", t, f"baro jump rejected ({math.sqrt(self.last_baro_nu2):.1f} sigma "
                                               f"against the {CHANNEL_LABEL[self._anchor()]} channel)")
             baro_suspect = True
-        elif wv == "high" and self._anchor() != BARO:
-            ev = self._exclude("baro_ins", t, wreason + f" (baro in the {CHANNEL_LABEL[self._anchor()]} channel)")
-            baro_suspect = True
         elif level_confirmed:
             ev = self._exclude("baro_ins", t, self.level_txt)
             baro_suspect = True
@@ -261,8 +273,11 @@ class AdaptiveLogic:
             ev = self._exclude("baro_ins", t, blame["baro_ins"])
             baro_suspect = True
         elif "baro_ins" in caution or wv != "ok" or level_now:
-            ev = tr.set("caution", t, caution.get("baro_ins") or wreason or self.level_txt)
-            baro_suspect = baro_suspect or wv != "ok"
+            # the baro's innovation window alone is a caution (and vetoes no
+            # other verdict): it is the test most sensitive to a mismatched
+            # noise model; ramps are the level test's
+            ev = tr.set("caution", t, caution.get("baro_ins") or self.level_txt or
+                        (wreason + f" (baro in the {CHANNEL_LABEL[self._anchor()]} channel)"))
         else:
             ev = tr.set("nominal", t, "consistent")
         if ev is not None:
@@ -408,7 +423,8 @@ class AdaptiveLogic:
         self.excluded.discard(name)
         src = min((j for j, n in ((GNSS, "gnss"), (RNG, "rangefinder"), (BARO, "baro_ins"))
                    if j != c and n not in self.excluded), key=lambda j: self.bank.P[j, 0, 0], default=BARO)
-        self.bank.reinit_from(c, src)
+        self.bank.reinit_from(c, src, extra_height_var=sigma * sigma)
+        self.warm_until[name] = t + self.warmup_us
         self.last_accept_us[c] = t
         self.windows[name].clear()
         return tr.set("nominal", t, f"readmitted after {self.m.readmit_s:g} s consistent; channel re-initialised")

@@ -166,7 +166,7 @@ class Monitor:
                 r = meter.rate_hz(t_us)
                 if r <= 0.0:
                     continue  # absent inputs are the channels' business (unavailable)
-                if r < need[k]:
+                if r < 0.9 * need[k]:  # 10 % tolerance: a nominal 10 Hz stream jitters
                     slow.append(f"{k} {r:.1f} Hz < {need[k]:.0f}")
         if slow:
             return self.input.set("caution", t_us, "too slow for %.1f s alarm: %s" % (m.time_to_alarm_s, ", ".join(slow)))

@@ -36,11 +36,14 @@ def pair_reports(bank: ChannelBank, available, thresholds) -> tuple[PairReport, 
     return tuple(out)
 
 
-def diff_sigmas(bank: ChannelBank) -> np.ndarray:
-    """sqrt(P_a + P_b - 2 P_ab) of the heights, for every pair."""
+def diff_sigmas(bank: ChannelBank, floor_var=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """sqrt(P_a + P_b - 2 P_ab) of the heights, for every pair; each channel's
+    ``P_HH`` raised to at least ``floor_var[c]`` (its sensor's own variance)."""
     out = np.empty(len(PAIRS))
+    P, Pc = bank.P, bank.Pc
     for p, (a, b) in enumerate(PAIRS):
-        v = bank.P[a, 0, 0] + bank.P[b, 0, 0] - 2.0 * bank.Pc[p, 0, 0]
+        pa, pb = P[a, 0, 0], P[b, 0, 0]
+        v = max(pa, floor_var[a]) + max(pb, floor_var[b]) - 2.0 * Pc[p, 0, 0]
         out[p] = math.sqrt(max(v, 1e-12))
     return out
 

@@ -1,0 +1,132 @@
+"""``mavnav audit PATH...``: headless audit of recorded logs, for CI and fleets.
+
+Exit status: 0 clean; 1 when ``--fail-on`` is met; 2 when an input is
+unreadable (the other files are still audited and reported).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Optional
+
+import click
+
+from ..audit import audit_file, worst_state
+from ..config import load_config
+from ..errors import MavnavError
+from ..ingest import expand_tlog_paths
+from ..sinks.csv_sink import CsvSink
+from . import main
+from .run import common_options
+from .viewer_options import make_viewer_sinks, viewer_options
+
+_RANK = {"nominal": 0, "caution": 1, "alarm": 2}
+
+
+def format_table(r: dict) -> str:
+    """A readable summary of one file's audit."""
+    if "error" in r:
+        return f"{r['path']}\n  UNREADABLE: {r['error']}\n"
+    lines = [f"{r['path']}"]
+    lines.append(f"  duration {r['duration_s']:.1f} s, {r['epochs']} epochs, {r['reboots']} reboots, mode {r['mode']}")
+    inp = r["inputs"]
+    parts = []
+    for k, rate in inp["rates_hz"].items():
+        ok = inp["supports_time_to_alarm"][k]
+        parts.append(f"{k} {rate:.1f} Hz{'' if ok or rate == 0 else ' (too slow)'}")
+    lines.append(f"  inputs: {', '.join(parts)}  [time-to-alarm {inp['time_to_alarm_s']:g} s]")
+    av = r["availability"]
+    used = av["channels_used"]
+    lines.append("  channels used: " + ", ".join(f"{k} {100 * v:.0f}%" for k, v in used.items()))
+    ov = av["overall"]
+    lines.append("  overall: " + ", ".join(f"{k} {100 * v:.1f}%" for k, v in ov.items() if v > 0))
+    rms = r["fused_vs_autopilot_rms_m"]
+    lines.append(f"  fused vs autopilot height: " + (f"RMS {rms:.2f} m, max {r['fused_vs_autopilot_max_m']:.2f} m"
+                                                     if rms is not None else "no autopilot height"))
+    alarms = r["alarms"]
+    n_alarm = sum(a["state"] == "alarm" for a in alarms)
+    lines.append(f"  alarms: {n_alarm} alarm, {len(alarms) - n_alarm} caution")
+    for a in alarms[:20]:
+        cleared = f"cleared {a['cleared_t_s']:.2f}" if a["cleared_t_s"] is not None else "not cleared"
+        lines.append(f"    t={a['t_s']:9.2f} s (boot {a['boot']}) {a['source']:<11} {a['state']:<7} {cleared:<16} {a['reason']}")
+    if len(alarms) > 20:
+        lines.append(f"    ... {len(alarms) - 20} more (see --json)")
+    for n in r["notes"]:
+        lines.append(f"  note: {n}")
+    return "\n".join(lines) + "\n"
+
+
+@main.command("audit")
+@click.argument("paths", nargs=-1, required=True, type=click.Path())
+@click.option("--json", "json_path", type=click.Path(dir_okay=False, writable=True), default=None,
+              help="Write the audit of every file as JSON ('-' for stdout).")
+@click.option("--fail-on", type=click.Choice(["caution", "alarm"]), default=None,
+              help="Exit with status 1 when any file reaches this state.")
+@click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Files audited in parallel on this machine.")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="Run the audit on a Dask distributed cluster (needs mavnav[fleet]).")
+@common_options
+@viewer_options
+def audit_cmd(paths, json_path, fail_on, workers, scheduler, config_path, sysid, csv_path, **viewer_kw) -> None:
+    """Audit recorded tlogs (files or directories) without a viewer: alarms with
+    times and sources, message rates and whether they support the
+    time-to-alarm, channel availability, fused height against the
+    autopilot's own estimate."""
+    cfg = load_config(config_path)
+    missing = [p for p in paths if not Path(p).exists()]
+    files = expand_tlog_paths([p for p in paths if Path(p).exists()])
+    results: list[dict] = [{"path": str(p), "error": "no such file or directory"} for p in missing]
+    if not files and not missing:
+        raise MavnavError("no .tlog files in " + ", ".join(paths))
+    if (csv_path or viewer_kw.get("rrd") or viewer_kw.get("connect") or viewer_kw.get("viewer") not in (None, "none")) \
+            and len(files) != 1:
+        raise MavnavError("--csv and the viewer options take exactly one file")
+    if workers > 1 or scheduler:
+        from ..fleet import audit_parallel
+
+        results += audit_parallel(files, config_path=config_path, sysid=sysid, workers=workers,
+                                  scheduler=scheduler)
+    else:
+        show_bar = len(files) > 1 and sys.stderr.isatty()
+        with click.progressbar(files, label="auditing", file=sys.stderr, show_pos=True) if show_bar \
+                else _nullbar(files) as bar:
+            for f in bar:
+                extra = []
+                if csv_path:
+                    extra.append(CsvSink(csv_path))
+                extra += make_viewer_sinks(live=False, **viewer_kw)
+                try:
+                    results.append(audit_file(f, cfg, sysid=sysid, extra_sinks=extra))
+                except MavnavError as exc:
+                    results.append({"path": str(f), "error": str(exc)})
+    for r in results:
+        click.echo(format_table(r))
+    if json_path:
+        doc = json.dumps({"files": results}, indent=1, default=str)
+        if json_path == "-":
+            click.echo(doc)
+        else:
+            Path(json_path).write_text(doc, encoding="utf-8")
+    unreadable = [r for r in results if "error" in r]
+    failed = [r for r in results if "error" not in r and fail_on and _RANK[worst_state(r)] >= _RANK[fail_on]]
+    click.echo(f"audited {len(results)} file(s): {len(unreadable)} unreadable, "
+               f"{len(failed)} reaching --fail-on {fail_on}" if fail_on else
+               f"audited {len(results)} file(s): {len(unreadable)} unreadable", err=True)
+    if unreadable:
+        sys.exit(2)
+    if failed:
+        sys.exit(1)
+
+
+class _nullbar:
+    def __init__(self, items):
+        self.items = items
+
+    def __enter__(self):
+        return self.items
+
+    def __exit__(self, *exc):
+        return False

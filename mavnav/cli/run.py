@@ -1,0 +1,170 @@
+"""``mavnav run`` (live daemon) and ``mavnav replay`` (a recorded tlog).
+
+Both run :func:`mavnav.pipeline.run`, the same fold; only the source and
+the pacing differ. The wall clock is read here and nowhere in the core.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+from typing import Iterable, Iterator, Optional
+
+import click
+
+from ..config import Config, load_config
+from ..errors import MavnavError
+from ..ingest import LiveSource, TlogSource
+from ..pipeline import run as run_pipeline
+from ..report import AlarmEvent, RunSummary
+from ..sinks.base import Sink
+from ..sinks.csv_sink import CsvSink
+from . import main
+from .emit_options import emit_options, make_emit_sinks, split_emit_options
+from .viewer_options import make_viewer_sinks, viewer_options
+
+
+def common_options(f):
+    """``--config``, ``--sysid``, ``--csv``: shared by run, replay and audit."""
+    f = click.option("--csv", "csv_path", type=click.Path(dir_okay=False, writable=True), default=None,
+                     help="Write the estimates of every epoch to this CSV file.")(f)
+    f = click.option("--sysid", type=click.IntRange(1, 255), default=None,
+                     help="Vehicle system id (default: the first autopilot heartbeat).")(f)
+    f = click.option("--config", "config_path", type=click.Path(dir_okay=False), default=None,
+                     help="Configuration YAML (default: built-in small-drone defaults).")(f)
+    return f
+
+
+class AlarmPrinter(Sink):
+    """Alarm transitions on stderr as they happen (the daemon's console)."""
+
+    name = "console"
+
+    def alarm(self, ev: AlarmEvent) -> None:
+        click.echo(f"[t={ev.t_s:9.3f} s boot {ev.boot}] {ev.source:<11} {ev.previous} -> {ev.state}: {ev.reason}",
+                   err=True)
+
+
+def print_summary(summary: RunSummary, title: str) -> None:
+    span = ""
+    if summary.first_t_us is not None:
+        span = f", vehicle time {summary.first_t_us * 1e-6:.1f}-{summary.last_t_us * 1e-6:.1f} s"
+    alarms = [a for a in summary.alarms if a.state == "alarm"]
+    click.echo(f"{title}: {summary.epochs} epochs{span}, {len(alarms)} alarms, {summary.reboots} reboots", err=True)
+    for name, why in summary.sink_failures.items():
+        click.echo(f"  sink {name} failed and was dropped: {why}", err=True)
+
+
+def paced(source: Iterable, speed: Optional[float]) -> Iterator:
+    """Release samples at ``speed`` times their vehicle-time pace (None: as fast as possible)."""
+    if speed is None:
+        yield from source
+        return
+    t0_vehicle: Optional[int] = None
+    t0_wall = 0.0
+    boot = None
+    for s in source:
+        t_us = getattr(s, "t_us", None)
+        b = getattr(s, "boot", None)
+        if t_us is not None and b is not None:
+            if t0_vehicle is None or b != boot:
+                t0_vehicle, t0_wall, boot = t_us, time.monotonic(), b
+            due = t0_wall + (t_us - t0_vehicle) * 1e-6 / speed
+            delay = due - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+        yield s
+
+
+def parse_speed(text: str) -> Optional[float]:
+    if text == "max":
+        return None
+    if text == "realtime":
+        return 1.0
+    try:
+        v = float(text)
+    except ValueError:
+        raise click.BadParameter("realtime, max, or a positive factor (e.g. 4)") from None
+    if not v > 0:
+        raise click.BadParameter("the factor must be positive")
+    return v
+
+
+def build_sinks(cfg: Config, csv_path: Optional[str], live: bool, viewer_kw: dict, emit_kw: dict) -> list[Sink]:
+    sinks: list[Sink] = [AlarmPrinter()]
+    if csv_path:
+        sinks.append(CsvSink(csv_path))
+    sinks += make_viewer_sinks(live=live, **viewer_kw)
+    sinks += make_emit_sinks(live_input=live, **emit_kw)
+    return sinks
+
+
+_VIEWER_KEYS = ("viewer", "connect", "rrd", "web_port", "grpc_port", "viewer_bind", "viewer_window", "viewer_hold")
+
+
+def _split_viewer(kw: dict) -> tuple[dict, dict]:
+    return {k: kw[k] for k in _VIEWER_KEYS if k in kw}, {k: v for k, v in kw.items() if k not in _VIEWER_KEYS}
+
+
+@main.command("run")
+@click.argument("connection")
+@common_options
+@viewer_options
+@emit_options
+def run_cmd(connection: str, config_path, sysid, csv_path, **kw) -> None:
+    """Attach to a live autopilot link and monitor it until interrupted.
+
+    CONNECTION is any pymavlink connection string: udpin:0.0.0.0:14550,
+    udpout:HOST:PORT, tcp:HOST:PORT, tcpin:0.0.0.0:5760, or a serial device
+    with its baud rate (/dev/ttyACM0,115200). SIGINT or SIGTERM stop it
+    cleanly with a summary.
+    """
+    emit_kw, rest = split_emit_options(kw)
+    viewer_kw, rest = _split_viewer(rest)
+    cfg = load_config(config_path)
+    source = LiveSource(connection, cfg.ingest, sysid=sysid)
+    stop = {"flag": False}
+
+    def on_signal(signum, frame):
+        stop["flag"] = True
+        source.close()
+
+    old = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        sinks = build_sinks(cfg, csv_path, True, viewer_kw, emit_kw)
+        click.echo(f"mavnav: monitoring {connection} ({cfg.monitor.mode} mode); Ctrl-C to stop", err=True)
+        summary = run_pipeline(source, cfg, sinks, info={"source": connection, "live": True,
+                                                          "link": getattr(source, "mav", None)},
+                               should_stop=lambda: stop["flag"])
+    finally:
+        source.close()
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+    print_summary(summary, "mavnav run")
+
+
+@main.command("replay")
+@click.argument("tlog", type=click.Path(exists=True, dir_okay=False))
+@click.option("--speed", default="max", show_default=True,
+              help="realtime, max, or a factor of real time (e.g. 4).")
+@common_options
+@viewer_options
+@emit_options
+def replay_cmd(tlog: str, speed: str, config_path, sysid, csv_path, **kw) -> None:
+    """Replay a recorded tlog through the monitor (the same pipeline as ``run``)."""
+    emit_kw, rest = split_emit_options(kw)
+    viewer_kw, rest = _split_viewer(rest)
+    pace = parse_speed(speed)
+    cfg = load_config(config_path)
+    source = TlogSource(tlog, cfg.ingest, sysid=sysid)
+    sinks = build_sinks(cfg, csv_path, False, viewer_kw, emit_kw)
+    try:
+        summary = run_pipeline(paced(source, pace), cfg, sinks, info={"source": tlog, "live": False})
+    except KeyboardInterrupt:
+        click.echo("mavnav replay: interrupted", err=True)
+        sys.exit(130)
+    print_summary(summary, "mavnav replay")
+
+
+__all__ = ["run_cmd", "replay_cmd", "common_options", "MavnavError"]
