@@ -32,6 +32,7 @@ import functools
 import logging
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -84,7 +85,16 @@ def viewer_options(f: Callable) -> Callable:
 
 
 def rerun_executable() -> str:
-    """The ``rerun`` program installed with rerun-sdk (beside this Python first)."""
+    """The ``rerun`` program installed with rerun-sdk: the binary itself, not
+    the Python wrapper script (which would run it as a grandchild)."""
+    try:
+        import rerun_cli
+
+        binary = Path(rerun_cli.__file__).parent / ("rerun.exe" if sys.platform.startswith("win") else "rerun")
+        if binary.is_file():
+            return str(binary)
+    except ImportError:
+        pass
     here = Path(sys.executable).parent / "rerun"
     if here.exists():
         return str(here)
@@ -160,13 +170,18 @@ class ViewerProcess:
             start_new_session=True,  # Ctrl-C in the terminal reaches mavnav, which stops us in order
         )
 
-    def wait_ready(self, timeout_s: float = START_TIMEOUT_S) -> Optional[str]:
-        """None once the port accepts connections, else why not."""
+    def wait_ready(self, timeout_s: float = START_TIMEOUT_S, settle_s: float = 0.0) -> Optional[str]:
+        """None once the ports accept connections (and the process is still
+        up ``settle_s`` later), else why not."""
         end = time.monotonic() + timeout_s
         while time.monotonic() < end:
             if self.proc.poll() is not None:
                 return f"the viewer exited with status {self.proc.returncode}: {self.tail()}"
             if all(port_open(self.host, p, 0.2) for p in self.ports):
+                if settle_s > 0:
+                    time.sleep(settle_s)
+                    if self.proc.poll() is not None:
+                        return f"the viewer exited with status {self.proc.returncode}: {self.tail()}"
                 return None
             time.sleep(0.1)
         return f"the viewer did not listen on ports {self.ports} within {timeout_s:.0f} s"
@@ -187,13 +202,20 @@ class ViewerProcess:
         return None
 
     def stop(self) -> None:
+        """Stop the child and anything it started (its own process group)."""
         if self.proc.poll() is None:
-            self.proc.terminate()
+            self._signal(signal.SIGTERM)
             try:
                 self.proc.wait(timeout=5)
             except subprocess.TimeoutExpired:
-                self.proc.kill()
+                self._signal(signal.SIGKILL)
                 self.proc.wait()
+
+    def _signal(self, sig: int) -> None:
+        try:
+            os.killpg(self.proc.pid, sig)  # start_new_session: the group is the child's own
+        except (ProcessLookupError, PermissionError, AttributeError):
+            self.proc.send_signal(sig)
         try:
             self._log.close()
             os.unlink(self._log.name)
@@ -246,18 +268,18 @@ def make_viewer_sinks(
     The returned sink has ``.page_url`` (web mode, else None) and
     ``.processes`` (the rerun children it started).
     """
-    import rerun as rr
     import uuid
 
-    from ..sinks.rerun_sink import RerunSink, ViewerTarget
+    import rerun as rr
+
+    from ..sinks.rerun_sink import Output, RerunSink, ViewerTarget
 
     if viewer not in VIEWERS:
         raise MavnavError(f"--viewer {viewer!r}: expected one of {', '.join(VIEWERS)}")
     if viewer == "none" and not connect and not rrd:
         return []
 
-    rr_sinks: list = []
-    targets: list[ViewerTarget] = []
+    targets: list[tuple[object, Optional[ViewerTarget]]] = []  # (rerun sink, what to watch)
     processes: list[ViewerProcess] = []
     on_close: list[Callable[[], None]] = []
     page_url: Optional[str] = None
@@ -286,9 +308,8 @@ def make_viewer_sinks(
             data_url = f"rerun+http://{_connect_host(viewer_bind)}:{gport}/proxy"
             page_url = web_page_url(viewer_bind, wport, data_url)
             processes.append(process)
-            rr_sinks.append(rr.GrpcSink(data_url))
             grpc_urls.add(data_url)
-            targets.append(ViewerTarget(f"the web viewer ({page_url})", process.check))
+            targets.append((rr.GrpcSink(data_url), ViewerTarget(f"the web viewer ({page_url})", process.check)))
             atexit.register(process.stop)
             if viewer_hold:
                 # registered after stop(): atexit runs it first
@@ -298,38 +319,43 @@ def make_viewer_sinks(
         gport = DEFAULT_GRPC_PORT if grpc_port == 0 else grpc_port
         data_url = f"rerun+http://{_connect_host(viewer_bind)}:{gport}/proxy"
         why: Optional[str] = None
-        if not port_open(viewer_bind, gport):  # else: reuse the viewer already there, like rerun does
+        if port_open(viewer_bind, gport):
+            pass  # a viewer is already there: use it, as rerun's own spawn does
+        elif sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+            why = "no display (DISPLAY and WAYLAND_DISPLAY are unset); try --viewer web"
+        else:
             args = [rerun_executable(), "--bind", viewer_bind, "--port", str(gport), "--memory-limit", "75%"]
             process = ViewerProcess(args, viewer_bind, (gport,))
-            why = process.wait_ready()
+            why = process.wait_ready(settle_s=1.0)  # it listens before it opens its window
             if why is not None:
                 process.stop()
         if why is not None:
             echo(f"mavnav: warning: the Rerun viewer could not start ({why}); going on without it")
         else:
-            rr_sinks.append(rr.GrpcSink(data_url))
             grpc_urls.add(data_url)
-            targets.append(ViewerTarget(f"the Rerun viewer at {data_url}", _tcp_check(viewer_bind, gport)))
+            targets.append((rr.GrpcSink(data_url),
+                            ViewerTarget(f"the Rerun viewer at {data_url}", _tcp_check(viewer_bind, gport))))
     if connect:
         url, host, port = grpc_url(connect)
-        if url not in grpc_urls:
-            rr_sinks.append(rr.GrpcSink(url))
-            targets.append(ViewerTarget(f"the Rerun viewer at {url}", _tcp_check(host, port)))
+        if url in grpc_urls:
+            pass
+        elif not port_open(host, port, 1.0):
+            # rerun would block for seconds trying to connect: do not attach at all
+            echo(f"mavnav: warning: no Rerun viewer listens at {url}; going on without it")
+        else:
+            targets.append((rr.GrpcSink(url), ViewerTarget(f"the Rerun viewer at {url}", _tcp_check(host, port))))
     if rrd:
-        rr_sinks.append(rr.FileSink(str(rrd)))
-    if not rr_sinks:
+        targets.append((rr.FileSink(str(rrd)), None))
+    if not targets:
         return []
 
-    rec = rr.RecordingStream(application_id, recording_id=uuid.uuid4())
-    rec.set_sinks(*rr_sinks)
-    sink = RerunSink(
-        rec,
-        live=live,
-        window_s=viewer_window,
-        targets=targets,
-        has_file=bool(rrd),
-        on_close=on_close,
-    )
+    recording_id = uuid.uuid4()
+    outputs = []
+    for rr_sink, target in targets:
+        rec = rr.RecordingStream(application_id, recording_id=recording_id)
+        rec.set_sinks(rr_sink)
+        outputs.append(Output(rec, target))
+    sink = RerunSink(outputs, live=live, window_s=viewer_window, on_close=on_close)
     sink.page_url = page_url  # type: ignore[attr-defined]
     sink.processes = processes  # type: ignore[attr-defined]
     return [sink]

@@ -34,6 +34,7 @@ from __future__ import annotations
 import logging
 import math
 import re
+import threading
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Optional, Sequence
@@ -111,13 +112,54 @@ class BootClock:
 
 
 # --------------------------------------------------------------------------
+# Outputs: one recording stream per target, written together
+
+
+@dataclass
+class Output:
+    """One place the recording goes: an ``.rrd`` file (``target`` None) or a
+    viewer / gRPC server that can go away (``target`` set).
+
+    Every output has its own :class:`rerun.RecordingStream` (same application
+    and recording id), so that a viewer that goes away can be let go of
+    without touching the file.
+    """
+
+    rec: rr.RecordingStream
+    target: Optional["ViewerTarget"] = None
+
+
+class _Fanout:
+    """The few RecordingStream calls the sink makes, on every live output."""
+
+    def __init__(self, recs: Sequence[rr.RecordingStream]):
+        self.recs = list(recs)
+
+    def remove(self, rec: rr.RecordingStream) -> None:
+        if rec in self.recs:
+            self.recs.remove(rec)
+
+    def set_time(self, timeline: str, **kw) -> None:
+        for rec in self.recs:
+            rec.set_time(timeline, **kw)
+
+    def log(self, entity: str, archetype, static: bool = False) -> None:
+        for rec in self.recs:
+            rec.log(entity, archetype, static=static)
+
+    def send_columns(self, entity: str, indexes, columns) -> None:
+        for rec in self.recs:
+            rec.send_columns(entity, indexes=indexes, columns=columns)
+
+
+# --------------------------------------------------------------------------
 # Writers: rows (live) or buffered columns (replay)
 
 
 class _RowWriter:
     """Logs every row at once (live)."""
 
-    def __init__(self, rec: rr.RecordingStream):
+    def __init__(self, rec: _Fanout):
         self.rec = rec
 
     def _at(self, ns: int) -> None:
@@ -152,7 +194,7 @@ class _Column:
 class _ColumnWriter:
     """Buffers rows per entity and sends them with ``send_columns`` (replay)."""
 
-    def __init__(self, rec: rr.RecordingStream, batch_rows: int):
+    def __init__(self, rec: _Fanout, batch_rows: int):
         self.rec = rec
         self.batch_rows = batch_rows
         self._scalars: dict[str, _Column] = {}
@@ -270,40 +312,38 @@ class ViewerTarget:
 
 
 class RerunSink(Sink):
-    """Logs epochs, alarms and input events to a Rerun recording.
+    """Logs epochs, alarms and input events to Rerun recordings.
 
-    ``rec`` must already have its sinks set (file, gRPC); ``targets`` are the
-    viewers to watch; ``has_file`` says an ``.rrd`` is being written (logging
-    goes on after every viewer is lost). ``on_close`` callbacks run after the
-    recording is flushed and disconnected (e.g. keep a web viewer serving).
+    Each :class:`Output` has its recording stream already connected (a file,
+    a gRPC server); outputs with a ``target`` are viewers to watch. After
+    every viewer is gone and there is no file, logging stops. ``on_close``
+    callbacks run after the recordings are flushed (e.g. keep a web viewer
+    serving).
     """
 
     name = "rerun"
 
     def __init__(
         self,
-        rec: rr.RecordingStream,
+        outputs: Sequence[Output],
         *,
         live: bool,
         window_s: float = 30.0,
         batch_rows: int = 200_000,
-        targets: Sequence[ViewerTarget] = (),
-        has_file: bool = False,
         check_interval_s: float = 1.0,
         flush_timeout_s: float = 10.0,
         on_close: Sequence[Callable[[], None]] = (),
     ):
-        self.rec = rec
+        self.outputs = list(outputs)
         self.live = live
         self.window_s = window_s
-        self.targets = list(targets)
-        self.has_file = has_file
         self.check_interval_s = check_interval_s
         self.flush_timeout_s = flush_timeout_s
         self.on_close = list(on_close)
+        self.out = _Fanout([o.rec for o in self.outputs])
         self.clock = BootClock()
-        self.writer = _RowWriter(rec) if live else _ColumnWriter(rec, batch_rows)
-        self.enabled = True
+        self.writer = _RowWriter(self.out) if live else _ColumnWriter(self.out, batch_rows)
+        self.enabled = bool(self.outputs)
         self._styled: set[str] = set()
         self._states: dict[str, str] = {}
         self._rates = _Rates()
@@ -311,16 +351,25 @@ class RerunSink(Sink):
         self._next_check = 0.0
         self._closed = False
 
+    @property
+    def targets(self) -> list["ViewerTarget"]:
+        return [o.target for o in self.outputs if o.target is not None]
+
+    @property
+    def has_file(self) -> bool:
+        return any(o.target is None for o in self.outputs)
+
     # -- setup -------------------------------------------------------------
 
     def start(self, info: dict) -> None:
-        rec = self.rec
-        rec.set_log_tick_enabled(False)
-        rec.set_log_time_enabled(False)
+        blueprint = bp.blueprint(self.live, self.window_s)
         source = info.get("source")
-        if source:
-            rec.send_recording_name(f"mavnav: {source}")
-        rec.send_blueprint(bp.blueprint(self.live, self.window_s), make_active=True, make_default=True)
+        for o in self.outputs:
+            o.rec.set_log_tick_enabled(False)
+            o.rec.set_log_time_enabled(False)
+            if source:
+                o.rec.send_recording_name(f"mavnav: {source}")
+            o.rec.send_blueprint(blueprint, make_active=True, make_default=True)
         for entity, archetype in bp.series_styles():
             self._style(entity, archetype)
         self._check_targets(force=True)
@@ -328,7 +377,7 @@ class RerunSink(Sink):
     def _style(self, entity: str, archetype) -> None:
         if entity not in self._styled:
             self._styled.add(entity)
-            self.rec.log(entity, archetype, static=True)
+            self.out.log(entity, archetype, static=True)
 
     # -- viewer health -----------------------------------------------------
 
@@ -337,23 +386,29 @@ class RerunSink(Sink):
         if not force and now < self._next_check:
             return
         self._next_check = now + self.check_interval_s
-        for target in self.targets:
-            if target.lost is not None:
+        for o in self.outputs:
+            if o.target is None or o.target.lost is not None:
                 continue
             try:
-                why = target.check()
+                why = o.target.check()
             except Exception as exc:  # a broken probe counts as a lost viewer
                 why = f"{type(exc).__name__}: {exc}"
             if why is not None:
-                target.lost = why
-                log.warning(
-                    "rerun: %s is gone (%s) at vehicle time %.3f s; the monitor goes on without it%s",
-                    target.description,
-                    why,
-                    self.clock.now_ns / NS_PER_S,
-                    " (the .rrd file is still written)" if self.has_file else "",
-                )
-        if self.targets and not self.has_file and all(t.lost for t in self.targets):
+                self._lose(o, why)
+
+    def _lose(self, o: Output, why: str) -> None:
+        """Report a viewer gone (once) and let go of its recording stream."""
+        o.target.lost = why
+        log.warning(
+            "rerun: %s is gone (%s) at vehicle time %.3f s; the monitor goes on without it%s",
+            o.target.description,
+            why,
+            self.clock.now_ns / NS_PER_S,
+            " (the .rrd file is still written)" if self.has_file else "",
+        )
+        self.out.remove(o.rec)
+        _let_go(o.rec)
+        if not self.out.recs:
             self.enabled = False
 
     @property
@@ -464,17 +519,36 @@ class RerunSink(Sink):
             if self.enabled:
                 self.writer.flush()
             self._check_targets(force=True)
-            try:
-                self.rec.flush(timeout_sec=self.flush_timeout_s)
-            except Exception as exc:  # a viewer that does not take the data in time
-                log.warning("rerun: could not flush the recording in %.0f s (%s)", self.flush_timeout_s, exc)
-            self.rec.disconnect()
+            for o in self.outputs:
+                if o.rec not in self.out.recs:
+                    continue
+                try:
+                    o.rec.flush(timeout_sec=self.flush_timeout_s)
+                except Exception as exc:  # a viewer that does not take the data
+                    if o.target is not None:
+                        self._lose(o, f"{type(exc).__name__}: {exc}")
+                        continue
+                    log.warning("rerun: could not flush the recording (%s)", exc)
+                o.rec.disconnect()
         finally:
             for callback in self.on_close:
                 try:
                     callback()
                 except Exception as exc:
                     log.warning("rerun: after close: %s: %s", type(exc).__name__, exc)
+
+
+def _let_go(rec: rr.RecordingStream) -> None:
+    """Disconnect a lost viewer's stream without waiting for it (rerun waits
+    a few seconds for a server that is gone)."""
+
+    def disconnect() -> None:
+        try:
+            rec.disconnect()
+        except Exception:
+            pass
+
+    threading.Thread(target=disconnect, name="mavnav-rerun-let-go", daemon=True).start()
 
 
 # --------------------------------------------------------------------------
@@ -533,4 +607,4 @@ def alarm_text(e: AlarmEvent) -> str:
     return f"{text}: {e.reason}" if e.reason else text
 
 
-__all__ = ["RerunSink", "ViewerTarget", "BootClock", "epoch_rows", "epoch_states", "alarm_text"]
+__all__ = ["RerunSink", "Output", "ViewerTarget", "BootClock", "epoch_rows", "epoch_states", "alarm_text"]
