@@ -37,11 +37,13 @@ class Autopilot:
         self.peer = peer
         self.policy = {k: list(v) for k, v in policy.items()}
         self.commands = []
+        self.heartbeats_sent = 0
         peer.handler = self.handle
 
     def handle(self, peer, m):
         if m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 191 and len(peer.of("HEARTBEAT", 191)) == 1:
             peer.send(autopilot_heartbeat())  # the vehicle announces itself once it knows the address
+            self.heartbeats_sent += 1
         if m.get_type() != "COMMAND_LONG":
             return
         self.commands.append(m)

@@ -1,0 +1,229 @@
+"""The commands themselves: ``mavnav replay --csv --emit`` and a live ``mavnav run`` process.
+
+* ALTITUDE on the wire equals the CSV of the same replay.
+* A live ``mavnav run`` sends nothing without ``--emit``; with ``--emit
+  input`` its output comes back out of the link it listens on; with
+  ``--emit CONNECTION`` it sends a command only with ``--allow-commands``.
+"""
+
+from __future__ import annotations
+
+import csv
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from pymavlink import mavutil
+
+from mavnav.cli import main
+from mavnav.sim import load_scenario, simulate
+from test_emit_commands import Autopilot
+from test_emit_sink import Peer
+
+SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"
+MAVNAV = Path(sys.executable).parent / "mavnav"
+SPEED = 8.0
+
+
+def free_udp_port() -> int:
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+def tlog_frames(path: Path, seconds: float):
+    """``(offset s, frame bytes)`` of a tlog's first ``seconds`` (record time)."""
+    log = mavutil.mavlink_connection(str(path))
+    out, t0 = [], None
+    while True:
+        m = log.recv_msg()
+        if m is None:
+            break
+        t0 = m._timestamp if t0 is None else t0
+        if m._timestamp - t0 > seconds:
+            break
+        out.append((m._timestamp - t0, bytes(m.get_msgbuf())))
+    log.close()
+    return out
+
+
+def send_paced(peer: Peer, port: int, frames, speed: float = SPEED) -> None:
+    start = time.monotonic()
+    for t, buf in frames:
+        wait = start + t / speed - time.monotonic()
+        if wait > 0:
+            time.sleep(wait)  # the simulated vehicle's clock, not a wait for a result
+        peer.sock.sendto(buf, ("127.0.0.1", port))
+
+
+@pytest.fixture(scope="module")
+def gnss_step(tmp_path_factory):
+    res = simulate(load_scenario(SCENARIOS / "px4_hover_gnss_step.yaml"), 11)
+    path = tmp_path_factory.mktemp("run") / "gnss_step.tlog"
+    path.write_bytes(res.tlog)
+    return path
+
+
+@pytest.fixture(scope="module")
+def frames(gnss_step):
+    return tlog_frames(gnss_step, 6.0)
+
+
+# --------------------------------------------------------------------------- replay
+
+
+def test_replay_altitude_equals_the_csv_of_the_same_run(gnss_step, tmp_path):
+    peer = Peer()
+    try:
+        out = tmp_path / "run.csv"
+        res = CliRunner().invoke(main, ["replay", str(gnss_step), "--csv", str(out), "--emit", peer.url,
+                                        "--altitude-rate", "5"])
+        assert res.exit_code == 0, res.output
+        rows = list(csv.DictReader(out.open()))
+        by_t = {int(round(float(r["t_s"]) * 1e6)): r for r in rows}
+        t = sorted(by_t)
+        expected = int((t[-1] - t[0]) * 5e-6) + 1
+        assert peer.wait_for(lambda: len(peer.of("ALTITUDE")) >= expected - 1)
+        peer.wait_for(lambda: len(peer.of("ALTITUDE")) > expected + 1, 0.2)  # bounded: nothing more should come
+        alts = peer.of("ALTITUDE")
+        assert abs(len(alts) - expected) <= 1
+        for a in alts:
+            row = by_t[a.time_usec]  # every ALTITUDE is an epoch of the CSV
+            h = float(row["height_fused_m"])
+            if np.isnan(h):
+                assert np.isnan(a.altitude_local)
+            else:
+                assert abs(a.altitude_local - h) <= 5e-5 + 1e-6 * abs(h)  # CSV: 0.1 mm; float32
+                assert a.altitude_relative == a.altitude_local
+            if row["rng_ok"] == "0":
+                assert np.isnan(a.bottom_clearance) and np.isnan(a.altitude_terrain)
+            else:
+                assert abs(a.altitude_terrain - float(row["height_rng_ch_m"])) <= 5e-5 + 1e-6 * abs(h)
+        states = {r["alarm"] for r in rows}
+        assert "alarm" in states  # the fault scenario did raise alarms ...
+        assert any(m.text.startswith("mavnav gnss ALARM") for m in peer.of("STATUSTEXT"))  # ... and they went out
+    finally:
+        peer.close()
+
+
+def test_replay_refuses_emit_input(gnss_step):
+    res = CliRunner().invoke(main, ["replay", str(gnss_step), "--emit", "input"])
+    assert res.exit_code == 2 and "live input link" in res.output
+
+
+# --------------------------------------------------------------------------- live runs
+
+
+class LiveRun:
+    """``mavnav run udpin:127.0.0.1:PORT ARGS`` as a process, stopped with SIGTERM."""
+
+    def __init__(self, tmp_path: Path, args):
+        self.port = free_udp_port()
+        self.err_path = tmp_path / f"run-{self.port}.err"
+        self._err = self.err_path.open("w")
+        self.proc = subprocess.Popen([str(MAVNAV), "run", f"udpin:127.0.0.1:{self.port}", *args],
+                                     stdout=subprocess.DEVNULL, stderr=self._err, stdin=subprocess.DEVNULL)
+
+    def stderr(self) -> str:
+        return self.err_path.read_text()
+
+    def wait_for_text(self, text: str, timeout: float = 30.0) -> bool:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if text in self.stderr():
+                return True
+            if self.proc.poll() is not None:
+                return text in self.stderr()
+            time.sleep(0.05)  # polling a file for a condition, bounded
+        return False
+
+    def stop(self) -> str:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+        try:
+            self.proc.wait(20)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait(5)
+        self._err.close()
+        return self.stderr()
+
+
+def _live(tmp_path, frames, args, vehicle: Peer):
+    run = LiveRun(tmp_path, args)
+    try:
+        assert run.wait_for_text("mavnav: monitoring"), run.stderr()
+        send_paced(vehicle, run.port, frames)
+        assert run.wait_for_text("] gnss"), run.stderr()  # the monitor worked on the telemetry
+    except BaseException:
+        run.stop()
+        raise
+    return run
+
+
+def test_live_run_sends_nothing_without_emit(tmp_path, frames):
+    vehicle = Peer(sysid=1, compid=1)
+    try:
+        run = _live(tmp_path, frames, [], vehicle)
+        err = run.stop()
+        assert run.proc.returncode == 0, err
+        assert "mavnav run:" in err and " 0 epochs" not in err
+        assert not vehicle.msgs and not vehicle.bad
+    finally:
+        vehicle.close()
+
+
+def test_live_run_emits_back_out_of_its_input_link(tmp_path, frames):
+    vehicle = Peer(sysid=1, compid=1)
+    try:
+        run = _live(tmp_path, frames, ["--emit", "input", "--emit-sysid", "1"], vehicle)
+        try:
+            assert vehicle.wait_for(lambda: len(vehicle.of("ALTITUDE", 191)) >= 5 and vehicle.of("STATUSTEXT", 191))
+        finally:
+            err = run.stop()
+        assert run.proc.returncode == 0, err
+        hb = vehicle.of("HEARTBEAT", 191)
+        assert hb and all(h.type == 18 and h.autopilot == 8 for h in hb)
+        alts = vehicle.of("ALTITUDE", 191)
+        assert all(0 <= a.time_usec <= 7_000_000 for a in alts)
+        assert {m.get_type() for m in vehicle.msgs} <= {"HEARTBEAT", "ALTITUDE", "STATUSTEXT"}
+        assert all(m.get_srcComponent() == 191 for m in vehicle.msgs)
+    finally:
+        vehicle.close()
+
+
+@pytest.mark.parametrize("allow", [False, True])
+def test_live_run_commands_only_with_allow_commands(tmp_path, frames, allow):
+    vehicle = Peer(sysid=1, compid=1)
+    autopilot = Peer(sysid=1, compid=1)  # the vehicle's end of mavnav's emit link
+    ap = Autopilot(autopilot, {})
+    try:
+        args = ["--emit", autopilot.url] + (["--allow-commands"] if allow else [])
+        run = _live(tmp_path, frames, args, vehicle)
+        try:
+            if allow:
+                assert autopilot.wait_for(lambda: len(ap.commands) == 5, timeout=10)
+            else:
+                assert autopilot.wait_for(lambda: len(autopilot.of("ALTITUDE", 191)) >= 5)
+                assert ap.heartbeats_sent == 1  # mavnav heard an autopilot, and still sent no command
+        finally:
+            err = run.stop()
+        assert run.proc.returncode == 0, err
+        if allow:
+            assert [int(c.param1) for c in ap.commands] == [105, 30, 29, 24, 132]
+            assert all(c.command == 511 for c in ap.commands)
+            assert "not granted" not in err
+        else:
+            assert not ap.commands and not autopilot.of("COMMAND_LONG")
+        assert {m.get_type() for m in autopilot.msgs} <= {"HEARTBEAT", "ALTITUDE", "STATUSTEXT", "COMMAND_LONG"}
+    finally:
+        vehicle.close()
+        autopilot.close()
