@@ -31,7 +31,8 @@ from mavnav.sim import load_scenario, simulate
 from mavnav.sinks.mavlink_commands import parse_rate
 from mavnav.sinks.mavlink_out import EmitConfig, MavlinkOutSink
 from test_emit_commands import Autopilot
-from test_emit_sink import Peer, feed, reports_every
+from test_emit_run import LiveRun, send_paced, tlog_frames
+from test_emit_sink import Peer
 
 pytest.importorskip("MAVProxy", reason="MAVProxy is not installed (pip install MAVProxy)")
 
@@ -86,23 +87,11 @@ def ground(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def frames(tmp_path_factory):
-    """(vehicle-clock offset s, frame bytes) of a simulated hover, its first REPLAY_S seconds."""
+    """(record-time offset s, frame bytes) of a simulated hover, its first REPLAY_S seconds."""
     res = simulate(load_scenario(SCENARIOS / "px4_hover_gnss_step.yaml"), 3)
     path = tmp_path_factory.mktemp("frames") / "hover.tlog"
     path.write_bytes(res.tlog)
-    log = mavutil.mavlink_connection(str(path))
-    out = []
-    t0 = None
-    while True:
-        m = log.recv_msg()
-        if m is None:
-            break
-        t0 = m._timestamp if t0 is None else t0
-        if m._timestamp - t0 > REPLAY_S:
-            break
-        out.append((m._timestamp - t0, bytes(m.get_msgbuf())))
-    log.close()
-    return out
+    return tlog_frames(path, REPLAY_S)
 
 
 def replay(vehicle: Peer, port: int, frames, stop: threading.Event) -> None:
@@ -165,25 +154,21 @@ def test_mavnav_behind_mavproxy_reaches_the_vehicle(ground, frames):
     vehicle.handler = None
 
 
-def test_emit_input_goes_back_through_mavproxy(ground):
+def test_mavnav_run_emit_input_behind_mavproxy(ground, frames, tmp_path):
+    """``mavnav run udpin:... --emit input`` on a MAVProxy output: its output reaches the vehicle."""
     vehicle: Peer = ground["vehicle"]
-
-    def new():  # this test's epochs are at vehicle time 500 s on
-        return [a for a in vehicle.of("ALTITUDE", compid=191) if a.time_usec >= 500_000_000]
-
-    link = mavutil.mavlink_connection(f"udpin:127.0.0.1:{ground['raw_in']}")
+    vehicle.handler = None
+    vehicle.clear()
+    live = LiveRun(tmp_path, ["--emit", "input"], port=ground["raw_in"])
     try:
-        hb = mavlink2.MAVLink_heartbeat_message(mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_PX4, 0, 0, 4, 3)
-        deadline = time.monotonic() + 10
-        while time.monotonic() < deadline:  # the input link hears the vehicle through MAVProxy
-            vehicle.send(hb, ("127.0.0.1", ground["master"]))
-            if link.recv_match(type="HEARTBEAT", blocking=True, timeout=0.2) is not None:
-                break
-        sink = MavlinkOutSink(None, EmitConfig(sysid=1, compid=191), use_input_link=True)
-        sink.start({"link": link})
-        feed(sink, reports_every(0.02, 2.0, t0_s=500.0))
-        assert vehicle.wait_for(lambda: len(new()) == 10, timeout=10)
-        assert [a.time_usec for a in new()] == [500_000_000 + k * 200_000 for k in range(10)]
-        sink.close(RunSummary())
+        assert live.wait_for_text("mavnav: monitoring"), live.stderr()
+        send_paced(vehicle, ground["master"], frames[: len(frames) // 2], SPEED)
+        assert vehicle.wait_for(lambda: len(vehicle.of("ALTITUDE", 191)) >= 5 and vehicle.of("STATUSTEXT", 191),
+                                timeout=15), live.stderr()
     finally:
-        link.close()
+        err = live.stop()
+    assert live.proc.returncode == 0, err
+    mine = [m for m in vehicle.msgs if m.get_srcComponent() == 191]
+    assert {m.get_type() for m in mine} == {"HEARTBEAT", "ALTITUDE", "STATUSTEXT"}
+    assert all(m.get_srcSystem() == 1 for m in mine)
+    assert all(0 <= a.time_usec <= REPLAY_S * 1e6 for a in vehicle.of("ALTITUDE", 191))

@@ -125,8 +125,8 @@ def test_replay_refuses_emit_input(gnss_step):
 class LiveRun:
     """``mavnav run udpin:127.0.0.1:PORT ARGS`` as a process, stopped with SIGTERM."""
 
-    def __init__(self, tmp_path: Path, args):
-        self.port = free_udp_port()
+    def __init__(self, tmp_path: Path, args, port: int = 0):
+        self.port = port or free_udp_port()
         self.err_path = tmp_path / f"run-{self.port}.err"
         self._err = self.err_path.open("w")
         self.proc = subprocess.Popen([str(MAVNAV), "run", f"udpin:127.0.0.1:{self.port}", *args],

@@ -95,6 +95,11 @@ class Peer:
                 self._cond.wait(min(left, 0.05))
         return True
 
+    def clear(self) -> None:
+        with self._cond:
+            self.msgs.clear()
+            self.bad.clear()
+
     def send(self, msg, addr=None) -> None:
         self.sock.sendto(msg.pack(self.mav), addr or self.last_from)
         self.mav.seq = (self.mav.seq + 1) % 256
