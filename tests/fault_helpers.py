@@ -13,17 +13,23 @@ FIELD = {"gnss": "height_ref_m", "rangefinder": "height_agl_m", "baro": "height_
 
 
 def apply_fault(samples, source, kind, onset_s, duration_s, magnitude, t0_us=1_000_000, seed=0):
-    """kind: step (m), ramp (m/s), dropout, freeze. Returns a new list."""
+    """kind: step (m), ramp (m/s), dropout, freeze, spikes (every 3rd sample
+    off by ``magnitude``). Returns a new list."""
     cls, field = KINDS[source], FIELD[source]
     on, off = t0_us + int(onset_s * 1e6), t0_us + int((onset_s + duration_s) * 1e6)
     out = []
     frozen = None
+    n = 0
     for s in samples:
         if isinstance(s, cls) and on <= s.t_us < off:
+            n += 1
             if kind == "dropout":
                 continue
+            if kind == "spikes" and n % 3:
+                out.append(s)
+                continue
             v = getattr(s, field)
-            if kind == "step":
+            if kind in ("step", "spikes"):
                 v = v + magnitude
             elif kind == "ramp":
                 v = v + magnitude * (s.t_us - on) * 1e-6

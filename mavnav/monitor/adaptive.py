@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections import deque
 from typing import Optional
 
 import numpy as np
@@ -74,7 +75,11 @@ class AdaptiveLogic:
         self.boot = boot
         clear_us = int(m.clear_s * 1e6)
         self.trackers = {s: SourceTracker(s, t_us, boot, clear_us=clear_us) for s in ("gnss", "rangefinder", "baro_ins")}
-        self.windows = {s: InnovationWindow(m.window_s) for s in ("gnss", "rangefinder", "baro_ins")}
+        # a rejected sample weighs at most the gate in the window: one wild
+        # sample is the gate's business, alarms from rejections need several
+        self.windows = {"gnss": InnovationWindow(m.window_s, cap=self.gate),
+                        "rangefinder": InnovationWindow(m.window_s, cap=self.gate),
+                        "baro_ins": InnovationWindow(m.window_s, cap=self.gate)}
         self.excluded: set[str] = set()
         self.last_accept_us: dict[int, Optional[int]] = {GNSS: None, RNG: None}
         self.last_seen_us: dict[int, Optional[int]] = {GNSS: None, RNG: None}
@@ -89,10 +94,37 @@ class AdaptiveLogic:
         self.bank.baro_on[:] = True
         self.pending_raw: dict[int, Optional[tuple]] = {GNSS: None, RNG: None}
         self.sensor_var_floor = [0.0, 0.0, 0.0]
+        self.range_refused: deque = deque()
+        self.range_valid: list[int] = []
         self.warm_until = {"gnss": t_us + self.warmup_us, "rangefinder": t_us + self.warmup_us,
                            "baro_ins": t_us + self.warmup_us}
         self.last_feedback_us = t_us
         self.raw_check = RawAuxCheck(window_s=1.0, k=self.k_cmp)
+
+    # ------------------------------------------------------------------ refused readings
+
+    ERRATIC_KINDS = ("out_of_range", "stuck", "impossible", "nan")
+
+    def on_range_refused(self, t_us: int, kind: str) -> None:
+        """A rangefinder reading refused at ingestion (``invalid_quality`` is the
+        sensor's own honest 'no reading' and does not count)."""
+        if kind in self.ERRATIC_KINDS and hasattr(self, "range_refused"):
+            self.range_refused.append((t_us, kind))
+
+    def _erratic_range(self, t: int) -> Optional[str]:
+        """Valid readings mixed with refused ones: an erratic sensor (alarm),
+        not a sensor that is merely out of its range (unavailable)."""
+        q = self.range_refused
+        limit = t - self.windows["rangefinder"].length_us
+        while q and q[0][0] <= limit:
+            q.popleft()
+        self.range_valid = [v for v in self.range_valid if v > limit]
+        n_bad, n_ok = len(q), len(self.range_valid)
+        if n_bad >= 3 and n_ok >= 5 and n_bad >= 0.1 * (n_bad + n_ok):
+            kinds = sorted({k for _, k in q})
+            return (f"erratic: {n_bad} of {n_bad + n_ok} readings in {self.m.window_s:g} s refused "
+                    f"({', '.join(kinds)})")
+        return None
 
     # ------------------------------------------------------------------ before the step
 
@@ -107,6 +139,8 @@ class AdaptiveLogic:
             if aux is None:
                 continue
             self.last_seen_us[c] = t
+            if c == RNG:
+                self.range_valid.append(t)
             self.pending_raw[c] = (aux.height_m - aux.age_s * bank.x[c, 1], aux.sigma_m)
             # the sensor's own 1-sigma includes slow errors the white-noise
             # model averages away: no channel knows H better than its sensor
@@ -289,13 +323,20 @@ class AdaptiveLogic:
             verdicts[name] = (lo, hi)
             rej = self.windows[name].rejected
             pair_blame = None if baro_suspect else blame.get(name)
+            erratic = self._erratic_range(t) if c == RNG and not self._warming(t) else None
             if name in self.excluded:
-                ev = self._maybe_readmit_aux(c, name, t, avail)
+                if erratic is not None:
+                    self.consistent_since[name] = None  # still refusing readings: not consistent
+                    ev = None
+                else:
+                    ev = self._maybe_readmit_aux(c, name, t, avail)
             elif self.last_seen_us[c] is None or t - self.last_seen_us[c] > self.stale_us[c]:
                 ev = tr.set("unavailable", t, "no recent data")
             elif rej >= m.alarm_rejections and self.f.innovation_gating:
                 ev = self._exclude(name, t, f"{rej} samples rejected in {m.window_s:g} s "
                                             f"(last {math.sqrt(self.last_nu2[c]):.1f} sigma)")
+            elif erratic is not None:
+                ev = self._exclude(name, t, erratic)
             elif pair_blame is not None:
                 ev = self._exclude(name, t, pair_blame)
             elif wv == "high" and not baro_suspect:

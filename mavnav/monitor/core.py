@@ -28,6 +28,7 @@ from ..samples import (
     LinkRecovered,
     RangeHeight,
     Reboot,
+    Rejected,
     SpecificForceUp,
 )
 from .levels import normal_k
@@ -116,6 +117,9 @@ class Monitor:
             self.counters["reboots"] += 1
             self._on_reboot(s)
             return []
+        elif isinstance(s, Rejected):
+            if s.t_us is not None and s.detail.startswith(("DISTANCE_SENSOR", "RANGEFINDER")):
+                self.logic.on_range_refused(s.t_us, s.kind)
         elif isinstance(s, LinkLost):
             self._link_lost = True
             self._input_event("unavailable", f"link lost ({s.silent_s:.1f} s silent)")

@@ -43,6 +43,9 @@ class PaperLogic:
     def pre(self, ep: EpochInputs) -> EpochInputs:
         return ep
 
+    def on_range_refused(self, t_us: int, kind: str) -> None:
+        pass  # the paper has no notion of refused readings
+
     def _fresh(self, c: int, t_us: int) -> bool:
         last = self.last_aux_us[c]
         stale = self.m.stale_gnss_s if c == GNSS else self.m.stale_rng_s
