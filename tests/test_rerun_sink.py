@@ -311,8 +311,8 @@ def _feed(sink) -> tuple[list, list]:
     return epochs, alarms
 
 
-def _write(tmp_path, live: bool, name: str):
-    [sink] = make_viewer_sinks("none", None, str(tmp_path / name), live=live)
+def _write(tmp_path, live: bool, name: str, **kw):
+    [sink] = make_viewer_sinks("none", None, str(tmp_path / name), live=live, **kw)
     epochs, alarms = _feed(sink)
     sink.close(None)
     return epochs, alarms, read_rrd(tmp_path / name)
@@ -348,14 +348,45 @@ def test_hand_made_reports_with_a_reboot_read_back(tmp_path):
     assert [s for _, s in rec.states["state/source/gnss"]] == ["nominal", "alarm", "nominal"]
 
 
-def test_live_rows_record_the_same_as_replay_columns(tmp_path):
+@pytest.mark.parametrize("live_batch_s", [0.0, 0.25], ids=["rows", "quarter-second-batches"])
+def test_live_records_the_same_as_replay_columns(tmp_path, live_batch_s):
     *_, cols = _write(tmp_path, live=False, name="cols.rrd")
-    *_, rows = _write(tmp_path, live=True, name="rows.rrd")
-    assert cols.data_entities == rows.data_entities
+    *_, live = _write(tmp_path, live=True, name="live.rrd", live_batch_s=live_batch_s)
+    assert cols.data_entities == live.data_entities
     for entity in cols.scalars:
-        assert same(cols.scalars[entity], rows.scalars[entity]), entity
-    assert cols.texts == rows.texts
-    assert cols.states == rows.states
+        assert same(cols.scalars[entity], live.scalars[entity]), entity
+    assert cols.texts == live.texts
+    assert cols.states == live.states
+
+
+def test_live_sends_every_quarter_second_of_vehicle_time_and_at_once_after_an_alarm(tmp_path):
+    [sink] = make_viewer_sinks("none", None, str(tmp_path / "live.rrd"), live=True)
+    sent = []  # vehicle time of the newest epoch when the writer sent
+    newest = [0]
+    flush = sink.writer.flush
+    sink.writer.flush = lambda: (sent.append(newest[0]), flush())[1]
+    epoch, alarm = sink.epoch, sink.alarm
+    alarm_times, checked = set(), []
+
+    def spy_alarm(e):
+        alarm_times.add((e.boot, e.t_us))
+        alarm(e)
+
+    def spy_epoch(r):
+        newest[0] = r.t_us
+        epoch(r)
+        if (r.boot, r.t_us) in alarm_times:
+            assert sink.writer.pending() == 0  # the alarm and its state change are out
+            checked.append(r.t_us)
+
+    sink.epoch, sink.alarm = spy_epoch, spy_alarm
+    _, alarms = _feed(sink)
+    sink.close(None)
+    assert len(checked) == len(alarms) == 2
+    # about 2.0 s + 1.5 s of flight in 0.25 s batches, plus the alarm epochs
+    assert 12 <= len(sent) <= 20
+    gaps = np.diff([t for t in sent if t])
+    assert gaps[gaps > 0].max() <= 400_000
 
 
 def test_replay_sends_columns_in_batches_with_the_same_result(tmp_path):

@@ -259,11 +259,13 @@ def make_viewer_sinks(
     viewer_hold: bool = True,
     echo: Callable[[str], None] = _echo_err,
     application_id: str = "mavnav",
+    live_batch_s: float = 0.25,
 ) -> list:
     """The sinks the viewer options ask for: ``[]`` or one :class:`RerunSink`.
 
-    ``live`` picks row-by-row logging and a cursor-relative time window;
-    replays send columns in bulk. Messages for the user (the web viewer's
+    ``live`` picks small batches (every ``live_batch_s`` of vehicle time; 0:
+    row by row) and a cursor-relative time window; replays send columns in
+    bulk. Messages for the user (the web viewer's
     URL, a viewer that cannot start) go to ``echo`` (stderr by default).
     The returned sink has ``.page_url`` (web mode, else None) and
     ``.processes`` (the rerun children it started).
@@ -355,7 +357,7 @@ def make_viewer_sinks(
         rec = rr.RecordingStream(application_id, recording_id=recording_id)
         rec.set_sinks(rr_sink)
         outputs.append(Output(rec, target))
-    sink = RerunSink(outputs, live=live, window_s=viewer_window, on_close=on_close)
+    sink = RerunSink(outputs, live=live, window_s=viewer_window, live_batch_s=live_batch_s, on_close=on_close)
     sink.page_url = page_url  # type: ignore[attr-defined]
     sink.processes = processes  # type: ignore[attr-defined]
     return [sink]
