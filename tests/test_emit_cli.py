@@ -45,6 +45,7 @@ def test_options_are_listed_in_help():
 def test_no_emit_no_sink():
     res, store = invoke([])
     assert res.exit_code == 0, res.output
+    assert store["emit"]["allow_commands"] is False
     assert store["sinks"] == [] and set(store["emit"]) == set(EMIT_OPTION_KEYS) and store["rest"] == {"other": "x"}
 
 
@@ -110,6 +111,7 @@ def test_options_reach_the_wire(tmp_path):
         cfg = sink.cfg
         assert (cfg.sysid, cfg.compid, cfg.altitude_rate_hz, cfg.debug_values, cfg.fusable) == (7, 192, 10.0, True, True)
         assert [(r.name, r.rate_hz) for r in cfg.message_rates] == [("ATTITUDE", 25.0)]
+        assert cfg.allow_commands and sink.requester is not None
         sink.start({})
         feed(sink, reports_every(0.02, 1.0))
         sink.close(RunSummary())
