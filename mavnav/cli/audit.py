@@ -1,7 +1,10 @@
 """``mavnav audit PATH...``: headless audit of recorded logs, for CI and fleets.
 
 Exit status: 0 clean; 1 when ``--fail-on`` is met; 2 when an input is
-unreadable (the other files are still audited and reported).
+unreadable (the other files are still audited and reported). The same in a
+fleet run (:mod:`mavnav.fleet`): ``--workers N`` (local processes),
+``--scheduler ADDRESS`` (Dask), ``--fleet-report DIR``, the result cache
+(``--cache-dir``, default ``./.mavnav-cache``; ``--rerun``, ``--no-cache``).
 """
 
 from __future__ import annotations
@@ -13,9 +16,11 @@ from typing import Optional
 
 import click
 
-from ..audit import audit_file, worst_state
+from ..audit import worst_state
 from ..config import load_config
 from ..errors import MavnavError
+from ..fleet.cache import DEFAULT_CACHE_DIR
+from ..fleet.task import audit_one
 from ..ingest import expand_tlog_paths
 from ..sinks.csv_sink import CsvSink
 from . import main
@@ -65,30 +70,59 @@ def format_table(r: dict) -> str:
 @click.option("--fail-on", type=click.Choice(["caution", "alarm"]), default=None,
               help="Exit with status 1 when any file reaches this state.")
 @click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True,
-              help="Files audited in parallel on this machine.")
+              help="Files audited in parallel on this machine (a local process pool).")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
-              help="Run the audit on a Dask distributed cluster (needs mavnav[fleet]).")
+              help="Run the audit on a Dask distributed cluster, e.g. tcp://host:8786 (needs mavnav[fleet]; "
+                   "the workers must see the files at the same paths).")
+@click.option("--fleet-report", "fleet_report", type=click.Path(file_okay=False), default=None, metavar="DIR",
+              help="Write the fleet summary here: files/alarms/summary.parquet, report.md and PNG plots "
+                   "(needs mavnav[fleet]).")
+@click.option("--cache-dir", type=click.Path(file_okay=False), default=None, metavar="DIR",
+              help=f"Where fleet runs keep per-file results by content hash [default: ./{DEFAULT_CACHE_DIR}].")
+@click.option("--rerun", is_flag=True, default=False,
+              help="Audit every file again even if its result is cached (and update the cache).")
+@click.option("--no-cache", is_flag=True, default=False, help="Neither read nor write the cache.")
 @common_options
 @viewer_options
-def audit_cmd(paths, json_path, fail_on, workers, scheduler, config_path, sysid, csv_path, **viewer_kw) -> None:
+def audit_cmd(paths, json_path, fail_on, workers, scheduler, fleet_report, cache_dir, rerun, no_cache,
+              config_path, sysid, csv_path, **viewer_kw) -> None:
     """Audit recorded tlogs (files or directories) without a viewer: alarms with
     times and sources, message rates and whether they support the
     time-to-alarm, channel availability, fused height against the
-    autopilot's own estimate."""
+    autopilot's own estimate.
+
+    A fleet run (--workers above 1, --scheduler, --fleet-report, --cache-dir
+    or --rerun) audits one file per task, shows its progress on stderr
+    (files done, failed, skipped) and skips files whose result is in the
+    cache: the key is the SHA-256 of the file's bytes with the effective
+    configuration, --sysid and the mavnav version and sources.
+    """
     cfg = load_config(config_path)
     missing = [p for p in paths if not Path(p).exists()]
     files = expand_tlog_paths([p for p in paths if Path(p).exists()])
     results: list[dict] = [{"path": str(p), "error": "no such file or directory"} for p in missing]
     if not files and not missing:
         raise MavnavError("no .tlog files in " + ", ".join(paths))
-    if (csv_path or viewer_kw.get("rrd") or viewer_kw.get("connect") or viewer_kw.get("viewer") not in (None, "none")) \
-            and len(files) != 1:
+    in_process = csv_path or viewer_kw.get("rrd") or viewer_kw.get("connect") \
+        or viewer_kw.get("viewer") not in (None, "none")
+    fleet = workers > 1 or scheduler or fleet_report or cache_dir or rerun
+    if in_process and len(files) != 1:
         raise MavnavError("--csv and the viewer options take exactly one file")
-    if workers > 1 or scheduler:
-        from ..fleet import audit_parallel
+    if in_process and fleet:
+        raise MavnavError("--csv and the viewer options audit one file in this process: "
+                          "not with --workers, --scheduler, --fleet-report, --cache-dir or --rerun")
+    run = None
+    if fleet:
+        from ..fleet import Progress, run_fleet
 
-        results += audit_parallel(files, config_path=config_path, sysid=sysid, workers=workers,
-                                  scheduler=scheduler)
+        if fleet_report:
+            from ..fleet.report import _need
+
+            _need("pyarrow.parquet"), _need("matplotlib")  # fail now, not after the whole fleet
+        cache = None if no_cache else (cache_dir or DEFAULT_CACHE_DIR)
+        run = run_fleet(files, cfg, sysid=sysid, workers=workers, scheduler=scheduler, cache_dir=cache,
+                        rerun=rerun, progress=Progress())
+        results += run.results
     else:
         show_bar = len(files) > 1 and sys.stderr.isatty()
         with click.progressbar(files, label="auditing", file=sys.stderr, show_pos=True) if show_bar \
@@ -98,10 +132,7 @@ def audit_cmd(paths, json_path, fail_on, workers, scheduler, config_path, sysid,
                 if csv_path:
                     extra.append(CsvSink(csv_path))
                 extra += make_viewer_sinks(live=False, **viewer_kw)
-                try:
-                    results.append(audit_file(f, cfg, sysid=sysid, extra_sinks=extra))
-                except MavnavError as exc:
-                    results.append({"path": str(f), "error": str(exc)})
+                results.append(audit_one(f, cfg, sysid=sysid, extra_sinks=extra))
     for r in results:
         click.echo(format_table(r))
     if json_path:
@@ -110,11 +141,19 @@ def audit_cmd(paths, json_path, fail_on, workers, scheduler, config_path, sysid,
             click.echo(doc)
         else:
             Path(json_path).write_text(doc, encoding="utf-8")
+    if fleet_report:
+        from ..fleet.report import write_fleet_report
+
+        info = {"backend": run.backend, "workers": workers if not scheduler else f"Dask at {scheduler}",
+                "wall time": f"{run.elapsed_s:.1f} s", "config": config_path or "built-in defaults"}
+        written = write_fleet_report(results, fleet_report, run_info=info)
+        click.echo(f"fleet report: {written['report']}", err=True)
     unreadable = [r for r in results if "error" in r]
     failed = [r for r in results if "error" not in r and fail_on and _RANK[worst_state(r)] >= _RANK[fail_on]]
-    click.echo(f"audited {len(results)} file(s): {len(unreadable)} unreadable, "
+    cached = f", {run.counts.skipped} from the cache" if run is not None else ""
+    click.echo(f"audited {len(results)} file(s): {len(unreadable)} unreadable{cached}, "
                f"{len(failed)} reaching --fail-on {fail_on}" if fail_on else
-               f"audited {len(results)} file(s): {len(unreadable)} unreadable", err=True)
+               f"audited {len(results)} file(s): {len(unreadable)} unreadable{cached}", err=True)
     if unreadable:
         sys.exit(2)
     if failed:

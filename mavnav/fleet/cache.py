@@ -4,7 +4,8 @@ A result is stored under a key that hashes everything that decides it
 (:func:`cache_key`): the file's bytes (SHA-256), the effective configuration
 (its canonical JSON, so two YAML files meaning the same thing share a key),
 ``--sysid``, the mavnav version plus a fingerprint of the sources that
-compute an audit, and the versions of pymavlink and numpy. Renaming or
+compute an audit (:func:`code_fingerprint`: an edited estimator is a new
+key even without a version bump), and the versions of pymavlink and numpy. Renaming or
 moving a file keeps its key; editing one byte of it, of the configuration or
 of the estimator changes it.
 
@@ -44,21 +45,27 @@ def _version(dist: str) -> str:
         return "?"
 
 
+# Sources that do not take part in auditing a file: the command line, the
+# simulator, the output sinks other than their base, the fleet machinery other
+# than the task. Everything else (ingest, estimator, monitor, pipeline, audit,
+# config...) is in the fingerprint, including modules added later.
+_NOT_AUDIT_DIRS = {"cli", "sim"}
+_NOT_AUDIT_FILES = {"covariance.py", "synthetic.py", "fleet/__init__.py", "fleet/cache.py", "fleet/runner.py",
+                    "fleet/report.py"}
+_AUDIT_SINKS = {"sinks/__init__.py", "sinks/base.py"}
+
+
 @functools.lru_cache(maxsize=1)
 def code_fingerprint() -> str:
-    """SHA-256 over mavnav's sources that compute an audit.
-
-    Left out: the command line (``mavnav/cli``) and the fleet machinery other
-    than the task itself, which change how results are gathered, not what they are.
-    """
+    """SHA-256 over the mavnav sources that compute an audit (see ``_NOT_AUDIT_*``)."""
     root = Path(__file__).resolve().parents[1]
-    skip = {Path("fleet/cache.py"), Path("fleet/runner.py"), Path("fleet/report.py"), Path("fleet/__init__.py")}
     h = hashlib.sha256()
     for p in sorted(root.rglob("*.py")):
-        rel = p.relative_to(root)
-        if rel.parts[0] == "cli" or rel in skip:
+        rel = p.relative_to(root).as_posix()
+        if rel.split("/")[0] in _NOT_AUDIT_DIRS or rel in _NOT_AUDIT_FILES \
+                or (rel.startswith("sinks/") and rel not in _AUDIT_SINKS):
             continue
-        h.update(rel.as_posix().encode() + b"\0" + p.read_bytes() + b"\0")
+        h.update(rel.encode() + b"\0" + p.read_bytes() + b"\0")
     return h.hexdigest()
 
 
