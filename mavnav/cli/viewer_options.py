@@ -19,16 +19,19 @@ and the command passes them on::
 
 Web mode runs ``rerun --serve-web`` (from rerun-sdk) as a child process that
 hosts both the viewer page and its data, bound to ``--viewer-bind``; the page
-URL is printed on stderr. The child is stopped when mavnav exits (after
-Ctrl-C when held). A spawned native viewer is the user's window: it is left
-running. Viewer trouble (cannot start, goes away) is reported and never
-stops the monitor.
+URL is printed on stderr. The child is stopped when mavnav exits; when held
+(and stdin is a terminal) mavnav first waits for Ctrl-C, so a replay can be
+looked at after it ends. Busy ports are replaced by free ones (and said so).
+A spawned native viewer (``rerun --port GRPC_PORT``, reused if one already
+listens there) is the user's window: it is left running. Viewer trouble
+(cannot start, no display, nothing listening at ``--connect``, goes away
+mid-run) is reported and never stops the monitor; the ``.rrd`` is written
+regardless.
 """
 
 from __future__ import annotations
 
 import atexit
-import functools
 import logging
 import os
 import shutil
