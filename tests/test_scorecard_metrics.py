@@ -1,0 +1,178 @@
+"""Scorecard metrics on hand-checked cases, and the autopilot baseline end to end."""
+
+from __future__ import annotations
+
+import math
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+
+import scoremetrics as sm  # noqa: E402
+from autopilot_baseline import BaselineConfig, run_baseline  # noqa: E402
+
+from mavnav.config import config_from_dict  # noqa: E402
+from mavnav.ingest import TlogSource  # noqa: E402
+from mavnav.report import AlarmEvent  # noqa: E402
+from mavnav.sim import scenario_from_dict, simulate  # noqa: E402
+
+
+def ev(t_s, source, state, previous):
+    return AlarmEvent(t_us=int(round(t_s * 1e6)), boot=0, source=source, state=state, previous=previous, reason="")
+
+
+# A fault on the GNSS from 10 s to 20 s. The events, in order:
+#   2.0  gnss nominal->caution        not an alarm
+#   5.0  rangefinder nominal->alarm   alarm before the onset: a false alarm
+#   6.0  rangefinder alarm->nominal
+#  10.4  gnss caution->alarm          first alarm in [10, 20]: TTA 0.4 s, source gnss: isolated
+#  10.9  gnss alarm->alarm            not a transition into alarm (previous is alarm): ignored
+#  12.0  baro_ins nominal->alarm      a later alarm inside the window (not the first)
+#  25.0  gnss alarm->nominal
+#  30.0  baro_ins nominal->alarm      after the window: a false alarm (margin 0), not one with margin 10 s
+ALARMS = [
+    ev(2.0, "gnss", "caution", "nominal"),
+    ev(5.0, "rangefinder", "alarm", "nominal"),
+    ev(6.0, "rangefinder", "nominal", "alarm"),
+    ev(10.4, "gnss", "alarm", "caution"),
+    ev(10.9, "gnss", "alarm", "alarm"),
+    ev(12.0, "baro_ins", "alarm", "nominal"),
+    ev(25.0, "gnss", "nominal", "alarm"),
+    ev(30.0, "baro_ins", "alarm", "nominal"),
+]
+
+
+def test_alarm_onsets_are_transitions_into_alarm_only():
+    got = [(round(e.t_s, 3), e.source) for e in sm.alarm_onsets(ALARMS)]
+    assert got == [(5.0, "rangefinder"), (10.4, "gnss"), (12.0, "baro_ins"), (30.0, "baro_ins")]
+
+
+def test_detection_tta_and_isolation_hand_checked():
+    d = sm.detect(ALARMS, onset_s=10.0, end_s=20.0, source="gnss")
+    assert d.detected and d.isolated
+    assert d.tta_s == pytest.approx(0.4, abs=1e-9)  # 10.4 - 10.0
+    assert d.first_sources == ("gnss",)
+    # the same alarms judged for a rangefinder fault: detected at 10.4, wrong source
+    d2 = sm.detect(ALARMS, 10.0, 20.0, "rangefinder")
+    assert d2.detected and not d2.isolated
+    # a fault from 13 to 20 s: no alarm transition inside (12.0 is before, 30.0 after)
+    assert not sm.detect(ALARMS, 13.0, 20.0, "gnss").detected
+    # ... unless the grace period reaches 30.0 (20 + 10): TTA 30 - 13 = 17 s
+    d3 = sm.detect(ALARMS, 13.0, 20.0, "baro_ins", grace_s=10.0)
+    assert d3.detected and d3.tta_s == pytest.approx(17.0) and d3.isolated
+
+
+def test_two_sources_at_the_same_instant_is_not_an_isolation():
+    alarms = [ev(3.0, "gnss", "alarm", "nominal"), ev(3.0, "baro_ins", "alarm", "nominal")]
+    d = sm.detect(alarms, 2.0, 8.0, "gnss")
+    assert d.detected and d.tta_s == pytest.approx(1.0)
+    assert d.first_sources == ("baro_ins", "gnss") and not d.isolated
+
+
+def test_tta_stats_and_isolation_rate():
+    # TTAs 0.2, 0.4, 1.0, 3.0 and a miss (NaN, ignored). Sorted n = 4:
+    # median = (0.4 + 1.0) / 2 = 0.7; p95 at position 0.95 * 3 = 2.85:
+    # x[2] + 0.85 (x[3] - x[2]) = 1.0 + 0.85 * 2.0 = 2.7
+    med, p95 = sm.tta_stats([1.0, 0.2, math.nan, 3.0, 0.4])
+    assert med == pytest.approx(0.7)
+    assert p95 == pytest.approx(2.7)
+    assert all(math.isnan(v) for v in sm.tta_stats([math.nan]))
+    dets = [sm.Detection(True, 0.2, True, ("gnss",)), sm.Detection(True, 0.4, False, ("baro_ins",)),
+            sm.Detection(False, math.nan, False, ()), sm.Detection(True, 1.0, True, ("gnss",))]
+    assert sm.isolation_rate(dets) == (2, 3)  # 2 correct of 3 detected (the miss does not count)
+
+
+def test_false_alarms_per_hour():
+    # Fault-free: 4 alarm transitions (5.0, 10.4, 12.0, 30.0) in 30 min = 8 per hour.
+    n = sm.false_alarms(ALARMS)
+    assert n == 4
+    assert sm.per_hour(n, 1800.0) == pytest.approx(8.0)
+    # With the fault window [10, 20]: 5.0 and 30.0 remain; with a 10 s margin only 5.0.
+    assert sm.false_alarms(ALARMS, [(10.0, 20.0)]) == 2
+    assert sm.false_alarms(ALARMS, [(10.0, 20.0)], margin_s=10.0) == 1
+    # No event in one hour: the exact 95 % upper bound is -ln(0.05) = 3.0 per hour.
+    assert sm.poisson_upper_95(0, 3600.0) == pytest.approx(-math.log(0.05), rel=1e-6)
+
+
+def test_hold_and_windowed_rms_hand_checked():
+    # Estimates at 0.0, 1.0, 2.0 s: 10, 11, 13. Truth at 0.5, 1.5, 2.5, 3.5 s: 10, 10, 12, 12.
+    # Held estimate at the truth times: 10, 11, 13, 13 -> errors 0, 1, 1, 1.
+    t_est, h_est = [0.0, 1.0, 2.0], [10.0, 11.0, 13.0]
+    t_tr, h_tr = [0.5, 1.5, 2.5, 3.5], [10.0, 10.0, 12.0, 12.0]
+    assert list(sm.hold_at(t_est, h_est, [-1.0, 0.0, 0.99, 2.5])[1:]) == [10.0, 10.0, 13.0]
+    assert math.isnan(sm.hold_at(t_est, h_est, [-1.0])[0])
+    e, nan = sm.height_errors(t_est, h_est, t_tr, h_tr)
+    assert list(e) == [0.0, 1.0, 1.0, 1.0] and nan == 0
+    assert sm.rms(e) == pytest.approx(math.sqrt(3.0 / 4.0))  # sqrt((0 + 1 + 1 + 1) / 4)
+    # inside [1, 3]: truth times 1.5, 2.5 -> errors 1, 1 -> RMS 1; outside: 0.5, 3.5 -> 0, 1
+    e_in, _ = sm.height_errors(t_est, h_est, t_tr, h_tr, windows=[(1.0, 3.0)])
+    e_out, _ = sm.height_errors(t_est, h_est, t_tr, h_tr, windows=[(1.0, 3.0)], inside=False)
+    assert list(e_in) == [1.0, 1.0] and list(e_out) == [0.0, 1.0]
+    # a NaN estimate (monitor unavailable) is counted apart, not as an error
+    e2, nan2 = sm.height_errors(t_est, [10.0, float("nan"), 13.0], t_tr, h_tr)
+    assert list(e2) == [0.0, 1.0, 1.0] and nan2 == 1
+    # pooled: run A errors (0, 1, 1, 1) -> ss 3, n 4; run B (2, 2) -> ss 8, n 2: sqrt(11 / 6)
+    assert sm.pooled_rms([(3.0, 4), (8.0, 2)]) == pytest.approx(math.sqrt(11.0 / 6.0))
+    assert sm.icao_band(0.25) == "CAT III" and sm.icao_band(0.8) == "CAT II"
+    assert sm.icao_band(1.9) == "CAT I" and sm.icao_band(2.5) == "none"
+
+
+# ---------------------------------------------------------------- the baseline end to end
+
+HOVER = {
+    "name": "baseline_test",
+    "duration_s": 40.0,
+    "seed": 5,
+    "profile": "px4",
+    "trajectory": {"kind": "hover", "height_m": 12.0, "takeoff": False, "wander_m": 0.5},
+    "sensors": {"baro": {"sigma_bb_m": 0.5, "gamma_bb_per_s": 1.0, "bias_m": 1.5},
+                "gnss": {"sigma_z_m": 0.8, "correlated_sigma_m": 1.0}},
+}
+
+
+def _run(scn_dict, cfg=BaselineConfig()):
+    scn = scenario_from_dict(scn_dict)
+    res = simulate(scn)
+    with tempfile.TemporaryDirectory() as d:
+        p = Path(d) / "x.tlog"
+        p.write_bytes(res.tlog)
+        samples = list(TlogSource(p, config_from_dict({}).ingest))
+    out = run_baseline(samples, scn.filter_sensors(), cfg)
+    return res, out
+
+
+def test_baseline_falls_back_when_the_rangefinder_goes_stale():
+    d = dict(HOVER, faults=[{"kind": "rng_dropout", "onset_s": 15.0, "duration_s": 10.0, "mode": "silent"}])
+    res, out = _run(d)
+    t_tr, h_tr = res.truth["t_s"], res.truth["true_height_ref_m"]
+    # fuses sensibly: fault-free part (after 5 s, outside the dropout) within 0.5 m RMS of truth
+    e, _ = sm.height_errors(out.t_s, out.height_m, t_tr, h_tr, windows=[(5.0, 15.0), (25.0, 40.0)])
+    assert e.size > 250 and sm.rms(e) < 0.5
+    # the rangefinder goes unavailable once stale: 0.5 s after its last sample (at most one
+    # 20 Hz interval before the onset), checked at the next sample of any sensor (25 Hz baro)
+    rng = [a for a in out.alarms if a.source == "rangefinder" and 14.0 < a.t_s]
+    assert rng[0].state == "unavailable" and 15.0 - 0.06 + 0.5 <= rng[0].t_s <= 15.5 + 0.05
+    # ... is back with its first sample after the dropout, and none of this is an alarm
+    assert rng[1].state == "nominal" and 25.0 <= rng[1].t_s <= 25.2
+    assert not sm.alarm_onsets(out.alarms)
+    # the height carries on from baro and GNSS: within 1 m RMS during the dropout
+    e_drop, _ = sm.height_errors(out.t_s, out.height_m, t_tr, h_tr, windows=[(15.5, 25.0)])
+    assert sm.rms(e_drop) < 1.0
+    states = [s for t, s in out.states if 16.0 <= t <= 24.5]
+    assert states and all(s["rangefinder"] == "unavailable" and s["gnss"] == "nominal" for s in states)
+
+
+def test_baseline_alarms_on_a_gross_gnss_step_after_its_timeout():
+    d = dict(HOVER, faults=[{"kind": "gnss_step", "onset_s": 15.0, "duration_s": 15.0, "magnitude": 15.0}])
+    res, out = _run(d, BaselineConfig(fail_s=5.0))
+    det = sm.detect(out.alarms, 15.0, 30.0, "gnss")
+    # 15 m is far outside the 5-sigma gate: every sample rejected, a failure after 5 s
+    assert det.detected and det.isolated and 5.0 <= det.tta_s <= 5.3
+    # the rejected GNSS never pulled the height: still close to truth during the fault
+    e, _ = sm.height_errors(out.t_s, out.height_m, res.truth["t_s"], res.truth["true_height_ref_m"],
+                            windows=[(15.0, 30.0)])
+    assert sm.rms(e) < 0.5
