@@ -144,6 +144,9 @@ def _outcome(fut, args) -> dict:
         return {"path": args[1], "error": f"task failed: {type(exc).__name__}: {exc}".rstrip(": ")}
 
 
+SCHEDULER_TIMEOUT = "10s"  # to connect to --scheduler
+
+
 def dask_client(scheduler):
     """A ``distributed.Client`` for an address (or the client itself); one-line errors."""
     try:
@@ -153,7 +156,7 @@ def dask_client(scheduler):
     if isinstance(scheduler, distributed.Client):
         return scheduler, False
     try:
-        return distributed.Client(scheduler, timeout="10s", set_as_default=False), True
+        return distributed.Client(scheduler, timeout=SCHEDULER_TIMEOUT, set_as_default=False), True
     except (OSError, TimeoutError) as exc:
         raise MavnavError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
 
@@ -169,7 +172,7 @@ def _run_dask(jobs, scheduler) -> Iterator[tuple[int, dict]]:
             # arguments only (a rerun with --rerun must recompute).
             f = client.submit(audit_task, *args, key=f"mavnav-audit-{i}-{os.urandom(4).hex()}", pure=False)
             futs[f] = (i, args)
-        for f in distributed.as_completed(list(futs)):
+        for f in distributed.as_completed(list(futs), loop=client.loop):
             i, args = futs.pop(f)
             out = _outcome(f, args)
             f.release()
