@@ -195,12 +195,15 @@ class FleetRun:
 
 def run_fleet(files: Sequence[str | Path], cfg: Config, *, sysid: Optional[int] = None, workers: int = 1,
               scheduler=None, cache_dir: Optional[str | Path] = None, rerun: bool = False,
-              progress: Optional[Callable[[FleetCounts, bool], None]] = None) -> FleetRun:
+              progress: Optional[Callable[[FleetCounts, bool], None]] = None,
+              backend: Optional[str] = None) -> FleetRun:
     """Audit ``files``; results in input order, each with ``result["fleet"]``
     (``sha256``, ``cached``, ``elapsed_s``, ``worker``...).
 
     ``cache_dir=None`` disables the cache; ``rerun=True`` recomputes every
-    file and overwrites its entry.
+    file and overwrites its entry. ``backend`` forces ``"serial"`` or
+    ``"processes"`` (default: Dask with a scheduler, processes for more than
+    one worker and file, else serial).
     """
     t0 = time.monotonic()
     displays = [str(f) for f in files]
@@ -225,15 +228,19 @@ def run_fleet(files: Sequence[str | Path], cfg: Config, *, sysid: Optional[int] 
             jobs.append((i, (ap, disp, cjson, sysid)))
     report(counts, False)
 
+    if backend is None:
+        backend = "dask" if scheduler is not None else "processes" if workers > 1 and len(jobs) > 1 else "serial"
     if not jobs:
         backend = "cache"
         it: Iterator = iter(())
-    elif scheduler is not None:
-        backend, it = "dask", _run_dask(jobs, scheduler)
-    elif workers > 1 and len(jobs) > 1:
-        backend, it = "processes", _run_processes(jobs, min(workers, len(jobs)))
+    elif backend == "dask":
+        it = _run_dask(jobs, scheduler)
+    elif backend == "processes":
+        it = _run_processes(jobs, min(workers, len(jobs)))
+    elif backend == "serial":
+        it = _run_serial(jobs)
     else:
-        backend, it = "serial", _run_serial(jobs)
+        raise ValueError(f"unknown backend {backend!r}")
 
     for i, r in it:
         r = _normal(r)

@@ -1,0 +1,94 @@
+"""Fleet audit throughput: files per second for 1 and 2 workers, in one run.
+
+Copies the bundled ``sitl_logs/*.tlog`` (60-90 s flights, 0.3-0.9 MB) ``--copies``
+times into a temporary directory (each copy one byte different, so none is
+the same file to a cache) and audits them with the cache off:
+
+* ``serial``: in this process (``--workers 1``, no pool to start);
+* ``processes``, 1 and 2 workers: the local process pool of ``--workers N``,
+  start-up included;
+* with ``--dask``, a ``distributed.LocalCluster`` of 1 and 2 worker processes
+  (``--scheduler``), cluster start-up excluded.
+
+Prints files/s, the scaling ratio (2 workers / 1 worker) and the load
+average (the machine may be shared). Usage::
+
+    .venv/bin/python bench/fleet.py [--copies 6] [--dask]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shlex
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from mavnav.config import load_config
+from mavnav.fleet import run_fleet
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def make_fleet(dest: Path, copies: int) -> list[Path]:
+    out = []
+    for i in range(copies):
+        for src in sorted((REPO / "sitl_logs").glob("*.tlog")):
+            p = dest / f"{src.stem}_{i:03d}.tlog"
+            shutil.copy(src, p)
+            with open(p, "ab") as f:  # a distinct file; a trailing byte is garbage the reader skips
+                f.write(bytes([i % 256]))
+            out.append(p)
+    return out
+
+
+def timed(files, **kw) -> tuple[float, object]:
+    t0 = time.perf_counter()
+    run = run_fleet(files, load_config(None), cache_dir=None, **kw)
+    dt = time.perf_counter() - t0
+    assert run.counts.failed == 0, [r for r in run.results if "error" in r][:1]
+    return dt, run
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--copies", type=int, default=6, help="copies of each sitl_logs tlog (6 logs each)")
+    ap.add_argument("--dask", action="store_true", help="also on a distributed.LocalCluster")
+    args = ap.parse_args()
+    print("command:", " ".join(shlex.quote(a) for a in [".venv/bin/python", "bench/fleet.py", *sys.argv[1:]]))
+    print(f"cores: {os.cpu_count()}, load average before: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    with tempfile.TemporaryDirectory() as tmp:
+        files = make_fleet(Path(tmp), args.copies)
+        mb = sum(f.stat().st_size for f in files) / 1e6
+        print(f"{len(files)} files, {mb:.1f} MB")
+        timed(files[:2], backend="serial")  # warm numba's cache and the imports in this process
+        rows = []
+        dt, _ = timed(files, backend="serial")
+        rows.append(("serial (in process)", 1, dt))
+        for w in (1, 2):
+            dt, _ = timed(files, workers=w, backend="processes")
+            rows.append(("processes (--workers N)", w, dt))
+        if args.dask:
+            import distributed
+
+            for w in (1, 2):
+                with distributed.LocalCluster(n_workers=w, threads_per_worker=1, processes=True,
+                                              dashboard_address=None, silence_logs=40) as c:
+                    timed(files[:w * 2], scheduler=c.scheduler_address)  # start the workers' imports
+                    dt, _ = timed(files, scheduler=c.scheduler_address)
+                rows.append(("dask LocalCluster (--scheduler)", w, dt))
+        print(f"{'backend':<34}{'workers':>8}{'wall s':>9}{'files/s':>9}{'MB/s':>8}")
+        for name, w, dt in rows:
+            print(f"{name:<34}{w:>8}{dt:>9.2f}{len(files) / dt:>9.2f}{mb / dt:>8.2f}")
+        by = {(n, w): dt for n, w, dt in rows}
+        for name in dict.fromkeys(n for n, _, _ in rows):
+            if (name, 1) in by and (name, 2) in by:
+                print(f"scaling {name}: 2 workers / 1 worker = {by[(name, 1)] / by[(name, 2)]:.2f}x")
+    print(f"load average after: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
+
+
+if __name__ == "__main__":
+    main()
