@@ -2,28 +2,45 @@
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
-STAMP := $(VENV)/.installed
+BASE := $(VENV)/.installed-base
+FULL := $(VENV)/.installed-test
 
 .PHONY: demo test install bench clean
 
-$(STAMP): pyproject.toml
+$(VENV)/bin/python:
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
-	$(BIN)/pip install -q -e '.[test]'
-	touch $(STAMP)
 
-install: $(STAMP)
+$(BASE): pyproject.toml | $(VENV)/bin/python
+	$(BIN)/pip install -q -e .
+	touch $(BASE)
 
-# The main job on a bundled log.
-demo: $(STAMP)
-	$(BIN)/mavnav covariance config/paper_2015_covariance.yaml --duration 5
+# Test extras: pytest, hypothesis, the fleet engine (dask), playwright for the
+# browser test, and MAVProxy (headless, without its GUI dependencies) for the
+# ground-station routing test.
+$(FULL): pyproject.toml | $(VENV)/bin/python
+	$(BIN)/pip install -q -e '.[test,fleet,web]'
+	$(BIN)/pip install -q --no-deps MAVProxy==1.8.75 pynmeagps defusedxml pyserial
+	touch $(BASE) $(FULL)
+
+install: $(BASE)
+
+# The main job on the bundled logs: audit every simulated flight in sitl_logs/.
+demo: $(BASE)
+	@mkdir -p out
+	$(BIN)/mavnav audit sitl_logs/ --json out/demo_audit.json
+	@echo "per-file audit JSON: out/demo_audit.json"
 
 # The whole test suite.
-test: $(STAMP)
+test: $(FULL)
 	$(BIN)/python -m pytest -q
 
-bench: $(STAMP)
+bench: $(FULL)
 	$(BIN)/python bench/estimator.py
+	$(BIN)/python bench/ingest.py
+	$(BIN)/python bench/audit.py
+	$(BIN)/python bench/integrity.py
+	$(BIN)/python bench/fleet.py
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) build *.egg-info out

@@ -158,7 +158,8 @@ def replay_cmd(tlog: str, speed: str, config_path, sysid, csv_path, **kw) -> Non
     pace = parse_speed(speed)
     cfg = load_config(config_path)
     source = TlogSource(tlog, cfg.ingest, sysid=sysid)
-    sinks = build_sinks(cfg, csv_path, False, viewer_kw, emit_kw)
+    # a paced replay is watched as it goes: the viewer logs as for a live run
+    sinks = build_sinks(cfg, csv_path, pace is not None, viewer_kw, emit_kw)
     try:
         summary = run_pipeline(paced(source, pace), cfg, sinks, info={"source": tlog, "live": False})
     except KeyboardInterrupt:
