@@ -14,10 +14,15 @@ def config_for(sensors: TrueSensors, **filter_opts):
     return config_from_dict(
         {
             "sensors": {
-                "ins": {"sigma_a_mps2": sensors.sigma_a_mps2, "alpha_a_per_s": sensors.alpha_a_per_s},
-                "baro": {"sigma_bb_m": sensors.sigma_bb_m, "gamma_bb_per_s": sensors.gamma_bb_per_s},
+                # the truth's biases are constants and its noises white: the
+                # filter's model must say exactly that (no random walks, no
+                # height-proportional rangefinder noise)
+                "ins": {"sigma_a_mps2": sensors.sigma_a_mps2, "alpha_a_per_s": sensors.alpha_a_per_s,
+                        "bias_rw_mps2_per_sqrt_s": 0.0},
+                "baro": {"sigma_bb_m": sensors.sigma_bb_m, "gamma_bb_per_s": sensors.gamma_bb_per_s,
+                         "bias_rw_m_per_sqrt_s": 0.0},
                 "gnss": {"sigma_z_m": sensors.sigma_z_m, "use_v_acc": False},
-                "rangefinder": {"sigma_m": sensors.sigma_rng_m},
+                "rangefinder": {"sigma_m": sensors.sigma_rng_m, "scale_sigma_frac": 0.0},
             },
             "filter": {
                 "p0": {"height_m2": 100.0, "vel_m2ps2": 1.0, "baro_bias_m2": 100.0, "acc_bias_m2ps4": 0.04},

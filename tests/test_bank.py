@@ -110,8 +110,10 @@ def test_cross_covariances_match_monte_carlo():
     sensors = TrueSensors(sigma_a_mps2=0.5, alpha_a_per_s=1.0, sigma_bb_m=3.0, gamma_bb_per_s=0.05,
                           sigma_z_m=0.5, sigma_rng_m=0.5)
     cfg = config_from_dict({
-        "sensors": {"ins": {"sigma_a_mps2": 0.5}, "baro": {"gamma_bb_per_s": 0.05, "sigma_bb_m": 3.0},
-                    "gnss": {"sigma_z_m": 0.5, "use_v_acc": False}, "rangefinder": {"sigma_m": 0.5}},
+        "sensors": {"ins": {"sigma_a_mps2": 0.5, "bias_rw_mps2_per_sqrt_s": 0.0},
+                    "baro": {"gamma_bb_per_s": 0.05, "sigma_bb_m": 3.0, "bias_rw_m_per_sqrt_s": 0.0},
+                    "gnss": {"sigma_z_m": 0.5, "use_v_acc": False},
+                    "rangefinder": {"sigma_m": 0.5, "scale_sigma_frac": 0.0}},
         "filter": {"p0": {"height_m2": 100.0, "vel_m2ps2": 1.0, "baro_bias_m2": 100.0, "acc_bias_m2ps4": 0.04}},
     })
     model = Model.from_config(cfg)
