@@ -445,7 +445,8 @@ def report(args, cases: List[Case], free: List[JobResult], faulted: List[JobResu
     P("=" * 100)
     P("mavnav integrity scorecard: paper vs adaptive vs autopilot baseline (EKF3/EKF2-like, "
       f"5-sigma gates, fail after {args.baseline_fail_s:g} s)")
-    P(f"sim: {SIM_SCENARIO.relative_to(ROOT)} (PX4 rates), seeds 1..{args.seeds}, filter noise = "
+    P(f"sim: 60 s ground-start approach/hover flights with the rates, sensors and home of "
+      f"{SIM_SCENARIO.relative_to(ROOT)} (PX4), seeds 1..{args.seeds}, filter noise = "
       "Scenario.filter_sensors()"
       + ("" if args.rng_scale_frac is None else f" with rangefinder.scale_sigma_frac={args.rng_scale_frac:g}")
       + "; "
@@ -551,7 +552,7 @@ def report(args, cases: List[Case], free: List[JobResult], faulted: List[JobResu
     # targets
     P("-" * 100)
     P("targets (simulated PX4 data; the real-log figures in brackets):")
-    P(f"{'target':<58}" + "".join(f"{n:>14}" for n in CONTENDERS))
+    P(f"{'target':<58}" + "".join(f"{n:>20}" for n in CONTENDERS))
 
     def target_rows(dataset):
         rows = [r for r in faulted if r.dataset == dataset]
@@ -587,7 +588,7 @@ def report(args, cases: List[Case], free: List[JobResult], faulted: List[JobResu
     for text, key, req in lines:
         cells = [cell(n, key, req) for n in CONTENDERS]
         verdict[text] = cells[1][1]
-        P(f"{text:<58}" + "".join(f"{c[0]:>14}" for c in cells))
+        P(f"{text:<58}" + "".join(f"{c[0]:>20}" for c in cells))
     cells = []
     for name in CONTENDERS:
         fa, hours, rm = ffs[name]
@@ -597,7 +598,7 @@ def report(args, cases: List[Case], free: List[JobResult], faulted: List[JobResu
             s += f" [{ffr[name][0]}]"
         cells.append((s, rate < 1.0))
     verdict["< 1 false alarm per hour fault-free"] = cells[1][1]
-    P(f"{'< 1 false alarm per hour fault-free':<58}" + "".join(f"{c[0]:>14}" for c in cells))
+    P(f"{'< 1 false alarm per hour fault-free':<58}" + "".join(f"{c[0]:>20}" for c in cells))
     cells = []
     for name in CONTENDERS:
         fa, hours, rm = ffs[name]
@@ -606,7 +607,7 @@ def report(args, cases: List[Case], free: List[JobResult], faulted: List[JobResu
             s += f" [{fmt(ffr[name][2], 2)}]"
         cells.append((s, rm <= 0.85))
     verdict["fault-free RMS <= 0.85 m (CAT II), PX4 rates"] = cells[1][1]
-    P(f"{'fault-free RMS <= 0.85 m (CAT II), PX4 rates':<58}" + "".join(f"{c[0]:>14}" for c in cells))
+    P(f"{'fault-free RMS <= 0.85 m (CAT II), PX4 rates':<58}" + "".join(f"{c[0]:>20}" for c in cells))
     P("adaptive: " + "; ".join(f"{k}: {'MET' if v else 'MISSED'}" for k, v in verdict.items()))
     n_runs = len(free) + len(faulted)
     P(f"{n_runs} runs ({len(faulted)} with a fault) x 3 contenders in {wall:.0f} s wall, {args.workers} worker(s)")
