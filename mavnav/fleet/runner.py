@@ -100,7 +100,13 @@ def _run_serial(jobs) -> Iterator[tuple[int, dict]]:
 
 
 def _preload() -> None:  # runs in each pool process
+    import signal
+
     import mavnav.audit  # noqa: F401
+
+    # Ctrl-C reaches the whole process group: the parent handles it (and
+    # terminates the pool); a worker would only print a traceback.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _run_processes(jobs, workers: int) -> Iterator[tuple[int, dict]]:
@@ -121,7 +127,8 @@ def _run_processes(jobs, workers: int) -> Iterator[tuple[int, dict]]:
     todo = list(jobs)
     while todo:
         retry = []
-        with ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=ctx, initializer=_preload) as ex:
+        ex = ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=ctx, initializer=_preload)
+        try:
             futs = {ex.submit(audit_task, *args): (i, args) for i, args in todo}
             pending = set(futs)
             while pending:
@@ -133,6 +140,12 @@ def _run_processes(jobs, workers: int) -> Iterator[tuple[int, dict]]:
                         retry.append((i, args))
                         continue
                     yield i, _outcome(f, args)
+        except BaseException:  # Ctrl-C, or the caller stopped: stop the workers, drop the rest
+            for proc in list((getattr(ex, "_processes", None) or {}).values()):
+                proc.terminate()
+            ex.shutdown(wait=False, cancel_futures=True)
+            raise
+        ex.shutdown(wait=True)
         todo = retry
 
 
