@@ -68,6 +68,7 @@ class Model:
     gravity_mps2: float
     p0_diag: tuple[float, float, float, float]
     init_from_first_baro: bool
+    height_prior: Literal["diffuse", "p0"] = "p0"
 
     @classmethod
     def from_config(cls, cfg: Config) -> "Model":
@@ -83,6 +84,7 @@ class Model:
             gravity_mps2=f.gravity_mps2,
             p0_diag=(f.p0.height_m2, f.p0.vel_m2ps2, f.p0.baro_bias_m2, f.p0.acc_bias_m2ps4),
             init_from_first_baro=f.init_from_first_baro,
+            height_prior=f.height_prior,
         )
 
 
@@ -194,14 +196,25 @@ def _check_finite(inputs: EpochInputs) -> None:
 
 
 def initial_state(model: Model, t_us: int, baro_m: Optional[float]) -> ChannelState:
-    """Prior ``[0, 0, 0, 0]``, ``P0``; conditioned on the first baro sample when
-    configured (this makes the differencing filter exactly equal to the
-    state-augmented one, see ``tests/test_channel_reference.py``)."""
+    """The state at the first baro sample.
+
+    ``height_prior == "p0"``: prior ``[0, 0, 0, 0]``, ``P0``, conditioned on
+    the first baro sample (this makes the differencing filter exactly equal
+    to the state-augmented one, see ``tests/test_channel_reference.py``).
+    ``"diffuse"``: the same conditioning under an uninformative height prior:
+    ``H`` = the baro reading, its variance ``P0_dH + sigma_bb^2``, fully
+    anti-correlated with ``dH``; nothing assumes the vehicle starts near the
+    reference point."""
     x = np.zeros(N_STATES)
     P = np.diag(np.asarray(model.p0_diag, dtype=float))
-    if baro_m is not None and model.init_from_first_baro:
-        if not math.isfinite(baro_m):
-            raise NonFiniteInputError(f"first baro sample is not finite ({baro_m})")
+    if baro_m is not None and not math.isfinite(baro_m):
+        raise NonFiniteInputError(f"first baro sample is not finite ({baro_m})")
+    if baro_m is not None and model.init_from_first_baro and model.height_prior == "diffuse":
+        # H = xi1(0) - dH - u(0): the posterior under an uninformative height prior
+        x[H] = baro_m
+        P[H, H] = model.p0_diag[DH] + model.sigma_bb_m**2
+        P[H, DH] = P[DH, H] = -model.p0_diag[DH]
+    elif baro_m is not None and model.init_from_first_baro:
         s = float(H_BARO @ P @ H_BARO) + model.sigma_bb_m**2
         k = P @ H_BARO / s
         x = x + k * (baro_m - float(H_BARO @ x))

@@ -87,6 +87,12 @@ class FilterConfig(_Section):
     # Condition the prior on the first baro sample (exactly equivalent to the
     # state-augmented filter); otherwise the first sample only starts differencing.
     init_from_first_baro: bool = True
+    # Height prior at start. "diffuse": nothing known of H but what the first
+    # baro sample says (H = baro, var P0_dH + sigma_bb^2, cov(H, dH) = -P0_dH),
+    # so a start in flight is as good as one on the ground. "p0": the paper's
+    # zero-mean P0 conditioned on the first baro sample (a start near the
+    # reference point).
+    height_prior: Literal["diffuse", "p0"] = "diffuse"
     # Gravity used in the control input W = [f_up, g].
     gravity_mps2: float = Field(9.80665, gt=0)
 

@@ -74,7 +74,7 @@ def augmented_reference(flight, model: Model, use_gnss: bool, sigma_z_m: float):
 def test_differencing_equals_augmented_filter(kind, irregular):
     sched = Schedule(duration_s=20.0, imu_dt_s=0.02, irregular=irregular, baro_every=1, gnss_every=5)
     flight = paper_flight(seed=11, sensors=SENSORS, schedule=sched)
-    cfg = config_for(SENSORS)
+    cfg = config_for(SENSORS, height_prior="p0")
     model = Model.from_config(cfg)
     hist, _ = run_channels(flight, cfg, kinds=(kind,))
     mine = [(t, x, P) for t, x, P, out in hist[kind] if out is not None]
@@ -93,8 +93,9 @@ def test_reference_catches_a_wrong_baro_noise():
     """The comparison is sharp: a 5 % error in gamma_bb is visible."""
     sched = Schedule(duration_s=10.0, imu_dt_s=0.02, baro_every=1, gnss_every=5)
     flight = paper_flight(seed=3, sensors=SENSORS, schedule=sched)
-    cfg = config_for(SENSORS)
-    wrong = config_for(TrueSensors(**{**SENSORS.__dict__, "gamma_bb_per_s": SENSORS.gamma_bb_per_s * 1.05}))
+    cfg = config_for(SENSORS, height_prior="p0")
+    wrong = config_for(TrueSensors(**{**SENSORS.__dict__, "gamma_bb_per_s": SENSORS.gamma_bb_per_s * 1.05}),
+                       height_prior="p0")
     hist, _ = run_channels(flight, wrong, kinds=("gnss",))
     ref = augmented_reference(flight, Model.from_config(cfg), use_gnss=True, sigma_z_m=SENSORS.sigma_z_m)
     P_mine = hist["gnss"][-1][2]

@@ -340,6 +340,14 @@ class Normaliser:
             for item in sel.decide():
                 fn(item)
         self._resolve_attitude(flush=True)
+        # samples held for a reference not yet known (HOME_POSITION pending)
+        # belong to the old boot: resolve from what is held and release them
+        # before the Reboot event, so no boot-0 sample follows it
+        origin, items = self.baro_ref.finish()
+        self._baro_released(origin, items)
+        origin, items = self.gnss_ref.finish()
+        self._gnss_released(origin, items)
+        self._ap_release(final=True)
         last = self.clock.last_t_us
         boot = self.clock.new_boot(t_us, recv_s)
         self.att.reset()

@@ -168,31 +168,57 @@ class AdaptiveLogic:
                     changes["baro_restart"] = True  # no baro row anywhere; differencing restarts
         return dataclasses.replace(ep, **changes) if changes else ep
 
+    def _anchors(self) -> list[int]:
+        """Channels held by an independent height sensor that is not in alarm."""
+        out = []
+        for c, name in AUX:
+            if name in self.excluded or self.last_accept_us[c] is None or self.trackers[name].state == "alarm":
+                continue
+            if self.bank.baro_on[c]:
+                out.append(c)
+        return out
+
     def _baro_level(self, t: int) -> tuple[bool, bool]:
-        """Level test of the baro against an anchored channel's ``H + dH``.
+        """Level test of the baro against the anchored channels' ``H + dH``.
 
         The differenced baro row is nearly blind to a slowly growing offset
         (its sensitivity to the level is ``1 - phi_u``) and the feedback would
         fold such an offset into the reference's bias; the level residual
         ``baro - (H + dH)`` of a channel held by GNSS or the rangefinder sees
-        it directly. Returns (exceeded now, confirmed for persist_s).
+        it directly. With two anchors both must agree (a step of one anchor's
+        own sensor is not the baro's fault). Returns (exceeded now,
+        confirmed for persist_s).
         """
-        c = self._anchor()
-        if c == BARO or self.last_baro_m is None or "baro_ins" in self.excluded:
+        anchors = self._anchors()
+        if not anchors or self.last_baro_m is None or "baro_ins" in self.excluded:
             self.level_since = None
             return False, False
         bank = self.bank
-        x, P = bank.x[c], bank.P[c]
-        r = self.last_baro_m - (x[0] + x[2])
-        var = P[0, 0] + P[2, 2] + 2.0 * P[0, 2] + self.bank.model.sigma_bb_m ** 2
-        thr = self.k_cmp * math.sqrt(var)
-        if abs(r) <= thr:
+        best = min(anchors, key=lambda c: bank.P[c, 0, 0])
+        texts = []
+        exceeded = {}
+        for c in anchors:
+            x, P = bank.x[c], bank.P[c]
+            r = self.last_baro_m - (x[0] + x[2])
+            var = P[0, 0] + P[2, 2] + 2.0 * P[0, 2] + bank.model.sigma_bb_m ** 2
+            thr = self.k_cmp * math.sqrt(var)
+            exceeded[c] = abs(r) > thr
+            texts.append(f"{r:+.2f} m from the {CHANNEL_LABEL[c]} channel (threshold {thr:.2f} m)")
+        # suspicion from the best anchor (a caution, and no aux sensor is
+        # blamed meanwhile). An alarm when every anchor agrees, or when the best
+        # one does and the raw GNSS and rangefinder agree with each other (then
+        # the anchor's own sensor is not the culprit: 2-of-3 without the baro)
+        suspect = exceeded[best]
+        raw = self.raw_check.verdict()
+        raw_vouches = raw is not None and raw[0] and len(anchors) == 2
+        if not (all(exceeded.values()) or (suspect and raw_vouches)):
             self.level_since = None
-            return False, False
+            if suspect:
+                self.level_txt = "baro " + "; ".join(texts)
+            return suspect, False
         if self.level_since is None:
             self.level_since = t
-        self.level_txt = (f"baro {r:+.2f} m from the {CHANNEL_LABEL[c]} channel's H + dH "
-                          f"(threshold {thr:.2f} m)")
+        self.level_txt = "baro " + "; ".join(texts)
         return True, t - self.level_since >= self.persist_us
 
     def _warming(self, t: int) -> bool:

@@ -446,7 +446,8 @@ class Scenario(_Section):
             ins=InsConfig(sigma_a_mps2=max(s.ins.sigma_a_mps2, 1e-6), alpha_a_per_s=s.ins.alpha_a_per_s),
             baro=BaroConfig(sigma_bb_m=max(s.baro.sigma_bb_m, 1e-6), gamma_bb_per_s=s.baro.gamma_bb_per_s),
             gnss=GnssConfig(sigma_z_m=max(sigma_z, 1e-6)),
-            rangefinder=RangefinderConfig(sigma_m=max(s.rangefinder.sigma_m, 1e-6)),
+            # the simulated rangefinder has white noise only: no scale term
+            rangefinder=RangefinderConfig(sigma_m=max(s.rangefinder.sigma_m, 1e-6), scale_sigma_frac=0.0),
         )
 
     def rates(self) -> Dict[str, float]:
