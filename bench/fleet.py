@@ -10,8 +10,9 @@ the same file to a cache) and audits them with the cache off:
 * with ``--dask``, a ``distributed.LocalCluster`` of 1 and 2 worker processes
   (``--scheduler``), cluster start-up excluded.
 
-Prints files/s, the scaling ratio (2 workers / 1 worker) and the load
-average (the machine may be shared). Usage::
+Prints files/s, the scaling ratio (2 workers / 1 worker), the cores the run
+actually got (CPU seconds / wall seconds) and the load average: on a shared
+machine the ratio is bounded by the cores left free. Usage::
 
     .venv/bin/python bench/fleet.py [--copies 6] [--dask]
 """
@@ -45,12 +46,13 @@ def make_fleet(dest: Path, copies: int) -> list[Path]:
     return out
 
 
-def timed(files, **kw) -> tuple[float, object]:
+def timed(files, **kw) -> tuple[float, float]:
+    """Wall seconds of one run and the CPU seconds its tasks used (each task measures its own)."""
     t0 = time.perf_counter()
     run = run_fleet(files, load_config(None), cache_dir=None, **kw)
     dt = time.perf_counter() - t0
     assert run.counts.failed == 0, [r for r in run.results if "error" in r][:1]
-    return dt, run
+    return dt, sum(r["fleet"]["cpu_s"] for r in run.results)
 
 
 def main() -> None:
@@ -66,11 +68,11 @@ def main() -> None:
         print(f"{len(files)} files, {mb:.1f} MB")
         timed(files[:2], backend="serial")  # warm numba's cache and the imports in this process
         rows = []
-        dt, _ = timed(files, backend="serial")
-        rows.append(("serial (in process)", 1, dt))
+        dt, cpu = timed(files, backend="serial")
+        rows.append(("serial (in process)", 1, dt, cpu))
         for w in (1, 2):
-            dt, _ = timed(files, workers=w, backend="processes")
-            rows.append(("processes (--workers N)", w, dt))
+            dt, cpu = timed(files, workers=w, backend="processes")
+            rows.append(("processes (--workers N)", w, dt, cpu))
         if args.dask:
             import distributed
 
@@ -78,13 +80,16 @@ def main() -> None:
                 with distributed.LocalCluster(n_workers=w, threads_per_worker=1, processes=True,
                                               dashboard_address=None, silence_logs=40) as c:
                     timed(files[:w * 2], scheduler=c.scheduler_address)  # start the workers' imports
-                    dt, _ = timed(files, scheduler=c.scheduler_address)
-                rows.append(("dask LocalCluster (--scheduler)", w, dt))
-        print(f"{'backend':<34}{'workers':>8}{'wall s':>9}{'files/s':>9}{'MB/s':>8}")
-        for name, w, dt in rows:
-            print(f"{name:<34}{w:>8}{dt:>9.2f}{len(files) / dt:>9.2f}{mb / dt:>8.2f}")
-        by = {(n, w): dt for n, w, dt in rows}
-        for name in dict.fromkeys(n for n, _, _ in rows):
+                    dt, cpu = timed(files, scheduler=c.scheduler_address)
+                rows.append(("dask LocalCluster (--scheduler)", w, dt, cpu))
+        # cores used = the tasks' CPU s / wall s: below the worker count, the
+        # workers did not get the cores (shared machine) or waited on start-up.
+        print(f"{'backend':<34}{'workers':>8}{'wall s':>9}{'files/s':>9}{'MB/s':>8}{'cores used':>11}")
+        for name, w, dt, cpu in rows:
+            used = f"{cpu / dt:>11.2f}" if cpu is not None else f"{'-':>11}"
+            print(f"{name:<34}{w:>8}{dt:>9.2f}{len(files) / dt:>9.2f}{mb / dt:>8.2f}{used}")
+        by = {(n, w): dt for n, w, dt, _ in rows}
+        for name in dict.fromkeys(n for n, _, _, _ in rows):
             if (name, 1) in by and (name, 2) in by:
                 print(f"scaling {name}: 2 workers / 1 worker = {by[(name, 1)] / by[(name, 2)]:.2f}x")
     print(f"load average after: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")

@@ -59,9 +59,9 @@ def audit_task(path: str, display: str, cfg_json: str, sysid: Optional[int] = No
     """The fleet task. Never raises for a bad file: any failure becomes ``{"path", "error"}``.
 
     ``result["fleet"]`` carries what legitimately differs between runs
-    (elapsed time, which worker); the rest is exactly :func:`audit_file`'s dict.
+    (elapsed and CPU time, which worker); the rest is exactly :func:`audit_file`'s dict.
     """
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     info: dict = {"worker": f"{socket.gethostname()}:{os.getpid()}"}
     try:
         result = audit_one(path, _config(cfg_json), sysid=sysid, display=display)
@@ -69,5 +69,6 @@ def audit_task(path: str, display: str, cfg_json: str, sysid: Optional[int] = No
         result = {"path": display, "error": f"internal error: {type(exc).__name__}: {exc}"}
         info["traceback"] = traceback.format_exc(limit=20)
     info["elapsed_s"] = round(time.perf_counter() - t0, 4)
+    info["cpu_s"] = round(time.process_time() - c0, 4)
     result["fleet"] = info
     return result
