@@ -57,7 +57,7 @@ def run_bank(eps, model):
 
 
 def run_filterpy(eps, model):
-    g = model.gravity_mps2
+
     kfs = []
     t0 = time.perf_counter()
     for ep in eps:

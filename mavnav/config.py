@@ -227,12 +227,52 @@ class Config(_Section):
 # ---------------------------------------------------------------- loading
 
 
-def _describe(err: dict) -> str:
-    loc = ".".join(str(p) for p in err.get("loc", ()) if p != "__root__")
+def _loc(parts) -> str:
+    out = ""
+    for p in parts:
+        if p == "__root__":
+            continue
+        out += f"[{p}]" if isinstance(p, int) else ("." if out else "") + str(p)
+    return out
+
+
+def describe_error(err: dict, loc: str | None = None) -> str:
+    """One pydantic error as users read it: ``unknown key 'a.b'``, ``missing
+    key 'a'``, or ``a.b: <message>``."""
+    loc = _loc(err.get("loc", ())) if loc is None else loc
     kind = err.get("type", "")
     if kind == "extra_forbidden":
         return f"unknown key '{loc}'"
-    return f"{loc or 'top level'}: {err.get('msg', 'invalid')}"
+    if kind == "missing":
+        return f"missing key '{loc}'"
+    msg = str(err.get("msg", "invalid"))
+    if msg.startswith("Value error, "):
+        msg = msg[len("Value error, "):]
+    return f"{loc}: {msg}" if loc else msg
+
+
+def validation_error(exc: ValidationError, origin: str, describe=describe_error) -> ConfigError:
+    """A ValidationError as a one-line ConfigError naming the first problem."""
+    errors = exc.errors()
+    more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
+    return ConfigError(f"{origin}: {describe(errors[0])}{more}")
+
+
+def read_yaml(path: Union[str, Path], kind: str = "configuration") -> tuple[object, str]:
+    """``(data, origin)`` of a YAML file; any failure is a one-line ConfigError."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"{p}: no such {kind} file") from None
+    except OSError as exc:
+        raise ConfigError(f"{p}: cannot read ({exc.strerror})") from None
+    try:
+        return yaml.safe_load(text), str(p)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        raise ConfigError(f"{p}: not valid YAML{where}") from None
 
 
 def config_from_dict(data: Union[dict, None], origin: str = "<dict>") -> Config:
@@ -244,27 +284,12 @@ def config_from_dict(data: Union[dict, None], origin: str = "<dict>") -> Config:
     try:
         return Config.model_validate(data)
     except ValidationError as exc:
-        errors = exc.errors()
-        first = _describe(errors[0])
-        more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
-        raise ConfigError(f"{origin}: {first}{more}") from None
+        raise validation_error(exc, origin) from None
 
 
 def load_config(path: Union[str, Path, None]) -> Config:
     """Load a YAML configuration file; ``None`` gives the defaults."""
     if path is None:
         return Config()
-    p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(f"{p}: no such configuration file") from None
-    except OSError as exc:
-        raise ConfigError(f"{p}: cannot read ({exc.strerror})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise ConfigError(f"{p}: not valid YAML{where}") from None
-    return config_from_dict(data, origin=str(p))
+    data, origin = read_yaml(path, "configuration")
+    return config_from_dict(data, origin=origin)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 
-import numpy as np
 
 from mavnav.samples import BaroHeight, GnssHeight, RangeHeight
 

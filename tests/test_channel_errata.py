@@ -52,7 +52,7 @@ def test_channel_3_observes_only_height_plus_bias():
     assert s.rms_height_m[-1] > 10.0
     assert s.rms_height_m[-1] > 0.5 * s.rms_height_m[len(s.t_s) // 10]
     # ...while the variance of H + dH collapses (recomputed from the full P).
-    from mavnav.channel import ChannelState, EpochInputs, initial_state, step
+    from mavnav.channel import ChannelState, EpochInputs, step
 
     state = ChannelState(x=np.zeros(4), P=np.diag(np.asarray(model.p0_diag, float)), t_us=0, baro_prev_m=0.0)
     for k in range(1, 1001):

@@ -61,7 +61,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from typing import Deque, Dict, List, Optional
+from typing import Deque, List, Optional
 
 from ..atmosphere import height_from_pressure_m, pressure_at_height_pa
 from ..config import IngestConfig
@@ -244,16 +244,7 @@ class Normaliser:
             self._cand = None
             self._reject(crecv, "time_jump", "unconfirmed jump at end of stream", ct)
             self._release_followers()
-        self._flush_streams()
-        for sel, fn in ((self.imu_sel, self._imu_selected), (self.range_sel, self._range_selected), (self.ap_sel, self._ap_selected)):
-            for item in sel.decide():
-                fn(item)
-        self._resolve_attitude(flush=True)
-        origin, items = self.baro_ref.finish()
-        self._baro_released(origin, items)
-        origin, items = self.gnss_ref.finish()
-        self._gnss_released(origin, items)
-        self._ap_release(final=True)
+        self._settle_boot()
         self._finalise_stats()
 
     # ------------------------------------------------------------------ vehicle
@@ -333,21 +324,25 @@ class Normaliser:
         for t_us, (ffn, ff, frecv) in self.streams.flush():
             ffn(ff, t_us, frecv)
 
-    def _reboot(self, t_us: int, recv_s: float) -> None:
-        # settle what belongs to the old boot first
+    def _settle_boot(self) -> None:
+        """Release everything held for the current boot: stream ordering,
+        source choices, attitude waits, and samples held for a reference not
+        yet known (resolved from what is held, as at the end of a stream).
+        Called at the end of the stream and before a Reboot event, so no
+        sample of a boot follows the event that ends it."""
         self._flush_streams()
         for sel, fn in ((self.imu_sel, self._imu_selected), (self.range_sel, self._range_selected), (self.ap_sel, self._ap_selected)):
             for item in sel.decide():
                 fn(item)
         self._resolve_attitude(flush=True)
-        # samples held for a reference not yet known (HOME_POSITION pending)
-        # belong to the old boot: resolve from what is held and release them
-        # before the Reboot event, so no boot-0 sample follows it
         origin, items = self.baro_ref.finish()
         self._baro_released(origin, items)
         origin, items = self.gnss_ref.finish()
         self._gnss_released(origin, items)
         self._ap_release(final=True)
+
+    def _reboot(self, t_us: int, recv_s: float) -> None:
+        self._settle_boot()  # what belongs to the old boot goes out before the Reboot event
         last = self.clock.last_t_us
         boot = self.clock.new_boot(t_us, recv_s)
         self.att.reset()

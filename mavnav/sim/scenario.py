@@ -19,7 +19,6 @@ import math
 from pathlib import Path
 from typing import Annotated, Dict, List, Literal, Optional, Tuple, Union
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from ..config import (
@@ -28,6 +27,9 @@ from ..config import (
     InsConfig,
     RangefinderConfig,
     SensorsConfig,
+    describe_error,
+    read_yaml,
+    validation_error,
 )
 from ..errors import ConfigError
 
@@ -478,16 +480,7 @@ def _loc(parts) -> str:
 
 
 def _describe(err: dict) -> str:
-    loc = _loc(err.get("loc", ()))
-    kind = err.get("type", "")
-    if kind == "extra_forbidden":
-        return f"unknown key '{loc}'"
-    if kind == "missing":
-        return f"missing key '{loc}'"
-    msg = str(err.get("msg", "invalid"))
-    if msg.startswith("Value error, "):
-        msg = msg[len("Value error, ") :]
-    return f"{loc}: {msg}" if loc else msg
+    return describe_error(err, _loc(err.get("loc", ())))
 
 
 def scenario_from_dict(data: object, origin: str = "<dict>") -> Scenario:
@@ -497,33 +490,17 @@ def scenario_from_dict(data: object, origin: str = "<dict>") -> Scenario:
     try:
         return Scenario.model_validate(data)
     except ValidationError as exc:
-        errors = exc.errors()
-        more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
-        raise ConfigError(f"{origin}: {_describe(errors[0])}{more}") from None
+        raise validation_error(exc, origin, _describe) from None
 
 
 def load_scenario(path: Union[str, Path]) -> Scenario:
     """Load a scenario YAML file (one-line ConfigError on any failure)."""
-    p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(f"{p}: no such scenario file") from None
-    except OSError as exc:
-        raise ConfigError(f"{p}: cannot read ({exc.strerror})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise ConfigError(f"{p}: not valid YAML{where}") from None
-    return scenario_from_dict(data, origin=str(p))
+    data, origin = read_yaml(path, "scenario")
+    return scenario_from_dict(data, origin=origin)
 
 
 def fault_errors_one_line(exc: ValidationError, origin: str) -> ConfigError:
-    errors = exc.errors()
-    more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
-    return ConfigError(f"{origin}: {_describe(errors[0])}{more}")
+    return validation_error(exc, origin, _describe)
 
 
 __all__: List[str] = [
