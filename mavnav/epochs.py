@@ -9,8 +9,11 @@ sample holds until the next one), giving the control increments ``dp_m`` and
 paper's ``Psi W``.
 
 GNSS and rangefinder samples are used at the first epoch at or after their
-time, with their age (``AuxMeasurement.age_s``); only the newest one since
-the previous epoch is kept (older ones are counted as superseded).
+time, with their age (``AuxMeasurement.age_s``): at each epoch the newest
+pending sample not after it is used (older ones are counted as superseded)
+and samples newer than the epoch wait for the next one. They queue: a
+stream that runs slightly ahead of the baro clock at the same rate must not
+replace each sample before it can be used.
 
 Gaps: when no baro sample comes for ``max_epoch_gap_s`` of IMU time, an epoch
 is forced at the IMU time without a baro row and the differencing restarts at
@@ -63,8 +66,7 @@ class EpochBuilder:
         self._last_imu_t: Optional[int] = None
         self._epoch_t: Optional[int] = None  # None until started
         self._pending_baro: deque[BaroHeight] = deque()
-        self._gnss: Optional[GnssHeight] = None
-        self._rng: Optional[RangeHeight] = None
+        self._aux: dict[str, deque] = {"gnss": deque(), "rng": deque()}
         self._baro_restart = False
 
     @property
@@ -140,9 +142,11 @@ class EpochBuilder:
         if s.t_us < self._epoch_t - self._max_latency_us:
             self.counters[f"{which}_late"] += 1
             return
-        if getattr(self, f"_{which}") is not None:
+        q = self._aux[which]
+        if len(q) >= 64:  # bounded: a stream far ahead of the baro clock
+            q.popleft()
             self.counters[f"{which}_superseded"] += 1
-        setattr(self, f"_{which}", s)
+        q.append(s)
 
     # ------------------------------------------------------------------ epochs
 
@@ -171,10 +175,14 @@ class EpochBuilder:
         return dp, dv
 
     def _aux_for(self, which: str, t_us: int) -> Optional[AuxMeasurement]:
-        s = getattr(self, f"_{which}")
-        if s is None or s.t_us > t_us:
+        q = self._aux[which]
+        s = None
+        while q and q[0].t_us <= t_us:
+            if s is not None:
+                self.counters[f"{which}_superseded"] += 1
+            s = q.popleft()
+        if s is None:
             return None
-        setattr(self, f"_{which}", None)
         age_us = t_us - s.t_us
         if age_us > self._max_latency_us:
             self.counters[f"{which}_late"] += 1

@@ -41,6 +41,9 @@ class Peer:
 
     def __init__(self, key: Optional[bytes] = None, allow_unsigned: bool = False, sysid: int = 1, compid: int = 1):
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        # a max-speed replay sends minutes of telemetry in a fraction of a
+        # second: a receive buffer for the whole burst, or loopback drops it
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4 << 20)
         self.sock.bind(("127.0.0.1", 0))
         self.sock.settimeout(0.02)
         self.port = self.sock.getsockname()[1]
