@@ -67,8 +67,10 @@ def test_expand_tlog_paths(tmp_path, ingest_clean_log):
     (tmp_path / "b" / "z.tlog").write_bytes(ingest_clean_log.read_bytes())
     (tmp_path / "b" / "a.TLOG").write_bytes(b"x")
     (tmp_path / "b" / "readme.txt").write_text("x")
-    got = expand_tlog_paths([tmp_path / "b", ingest_clean_log])
-    assert got == sorted([tmp_path / "b" / "z.tlog", tmp_path / "b" / "a.TLOG", ingest_clean_log])
+    got = expand_tlog_paths([tmp_path / "b", ingest_clean_log, tmp_path / "b" / "z.tlog"])
+    # argument order; a directory's logs sorted in its place; no file twice
+    assert got == [tmp_path / "b" / "a.TLOG", tmp_path / "b" / "z.tlog", ingest_clean_log]
+    assert expand_tlog_paths([ingest_clean_log, tmp_path / "b"])[0] == ingest_clean_log
     with pytest.raises(InputError):
         expand_tlog_paths([tmp_path / "nope"])
 

@@ -98,9 +98,17 @@ def audit_cmd(paths, json_path, fail_on, workers, scheduler, fleet_report, cache
     configuration, --sysid and the mavnav version and sources.
     """
     cfg = load_config(config_path)
-    missing = [p for p in paths if not Path(p).exists()]
-    files = expand_tlog_paths([p for p in paths if Path(p).exists()])
-    results: list[dict] = [{"path": str(p), "error": "no such file or directory"} for p in missing]
+    # results come back in the order of the arguments (a directory's logs
+    # sorted in its place); a missing path is reported in its place
+    slots: list = []
+    for p in paths:
+        if Path(p).exists():
+            slots += [f for f in expand_tlog_paths([p]) if f not in slots]
+        else:
+            slots.append({"path": str(p), "error": "no such file or directory"})
+    files = [x for x in slots if isinstance(x, Path)]
+    missing = [x for x in slots if isinstance(x, dict)]
+    file_results: list[dict] = []
     if not files and not missing:
         raise MavnavError("no .tlog files in " + ", ".join(paths))
     in_process = csv_path or viewer_kw.get("rrd") or viewer_kw.get("connect") \
@@ -122,7 +130,7 @@ def audit_cmd(paths, json_path, fail_on, workers, scheduler, fleet_report, cache
         cache = None if no_cache else (cache_dir or DEFAULT_CACHE_DIR)
         run = run_fleet(files, cfg, sysid=sysid, workers=workers, scheduler=scheduler, cache_dir=cache,
                         rerun=rerun, progress=Progress())
-        results += run.results
+        file_results = list(run.results)
     else:
         show_bar = len(files) > 1 and sys.stderr.isatty()
         with click.progressbar(files, label="auditing", file=sys.stderr, show_pos=True) if show_bar \
@@ -132,7 +140,9 @@ def audit_cmd(paths, json_path, fail_on, workers, scheduler, fleet_report, cache
                 if csv_path:
                     extra.append(CsvSink(csv_path))
                 extra += make_viewer_sinks(live=False, **viewer_kw)
-                results.append(audit_one(f, cfg, sysid=sysid, extra_sinks=extra))
+                file_results.append(audit_one(f, cfg, sysid=sysid, extra_sinks=extra))
+    it = iter(file_results)
+    results: list[dict] = [x if isinstance(x, dict) else next(it) for x in slots]
     for r in results:
         click.echo(format_table(r))
     if json_path:

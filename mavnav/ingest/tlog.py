@@ -72,19 +72,27 @@ def fill_message_stats(stats: IngestStats, reader, sysid: Optional[int]) -> None
 
 
 def expand_tlog_paths(paths: Union[PathLike, Iterable[PathLike]]) -> List[Path]:
-    """Files as given plus every ``*.tlog`` under each directory (recursively), sorted, unique.
+    """Files as given plus every ``*.tlog`` under each directory (recursively,
+    sorted within the directory), in the order of the arguments; a file named
+    twice is kept at its first place.
 
     Raises :class:`~mavnav.errors.InputError` for a path that does not exist.
     """
     if isinstance(paths, (str, Path)):
         paths = [paths]
-    found = set()
+    out: List[Path] = []
+    seen = set()
     for p in paths:
         p = Path(p)
         if p.is_dir():
-            found.update(q for q in p.rglob("*") if q.is_file() and q.suffix.lower() == ".tlog")
+            group = sorted(q for q in p.rglob("*") if q.is_file() and q.suffix.lower() == ".tlog")
         elif p.is_file():
-            found.add(p)
+            group = [p]
         else:
             raise InputError(f"{p}: no such file or directory")
-    return sorted(found)
+        for q in group:
+            key = q.resolve()
+            if key not in seen:
+                seen.add(key)
+                out.append(q)
+    return out
