@@ -14,7 +14,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from pymavlink import mavutil
 
 from mavnav.atmosphere import P0_PA, height_from_pressure_m
 from mavnav.cli import main
@@ -22,23 +21,10 @@ from mavnav.errors import ConfigError, InputError
 from mavnav.frames import down_row_from_euler
 from mavnav.sim import parse_fault, scenario_from_dict, simulate
 from mavnav.sim.inject import inject_bytes
+from tlog_decode import decode
 
 ROOT = Path(__file__).resolve().parents[1]
 TLOGS = ROOT.parent / "shared" / "tlogs"
-
-
-def decode(tmp_path, data: bytes, name: str):
-    p = tmp_path / name
-    p.write_bytes(data)
-    conn = mavutil.mavlink_connection(str(p), robust_parsing=True)
-    out = []
-    while True:
-        m = conn.recv_msg()
-        if m is None:
-            break
-        out.append(m)
-    conn.close()
-    return out
 
 
 def _rec(m) -> bytes:

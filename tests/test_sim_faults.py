@@ -11,25 +11,11 @@ from collections import defaultdict
 
 import numpy as np
 import pytest
-from pymavlink import mavutil
 
 from mavnav.sim import read_truth_csv, scenario_from_dict, simulate
+from tlog_decode import decode
 
 _TIME_FIELDS = ("time_boot_ms", "time_usec")
-
-
-def decode(tmp_path, tlog: bytes, name: str):
-    p = tmp_path / name
-    p.write_bytes(tlog)
-    conn = mavutil.mavlink_connection(str(p), robust_parsing=True)
-    out = []
-    while True:
-        m = conn.recv_msg()
-        if m is None:
-            break
-        out.append(m)
-    conn.close()
-    return out
 
 
 def _t(m):
