@@ -23,6 +23,11 @@ def height_from_pressure_m(pressure_pa: float, p_ref_pa: float, t_ref_k: float =
     return (t_ref_k / L_KPM) * (1.0 - (pressure_pa / p_ref_pa) ** _EXP)
 
 
+def heights_from_pressures_m(pressure_pa, p_ref_pa: float, t_ref_k: float = T0_K):
+    """:func:`height_from_pressure_m` over a numpy array of positive pressures."""
+    return (t_ref_k / L_KPM) * (1.0 - (pressure_pa / p_ref_pa) ** _EXP)
+
+
 def pressure_at_height_pa(height_m: float, p_ref_pa: float, t_ref_k: float = T0_K) -> float:
     """Inverse of :func:`height_from_pressure_m`."""
     return p_ref_pa * (1.0 - L_KPM * height_m / t_ref_k) ** (1.0 / _EXP)

@@ -21,7 +21,7 @@ from typing import Iterable, Optional
 
 from .config import Config
 from .errors import MavnavError
-from .ingest import TlogSource
+from .ingest import open_log
 from .pipeline import run
 from .report import SOURCES, AlarmEvent, EpochReport, RunSummary
 from .samples import BaroHeight, GnssHeight, RangeHeight, SpecificForceUp
@@ -95,8 +95,8 @@ class AuditSink(Sink):
         return out
 
 
-def _notes(result: dict, sink: AuditSink, cfg: Config) -> list[str]:
-    notes = []
+def _notes(result: dict, sink: AuditSink, cfg: Config, stats) -> list[str]:
+    notes = [f"log damaged: {d}" for d in stats.damage]
     for kind, ok in result["inputs"]["supports_time_to_alarm"].items():
         rate = result["inputs"]["rates_hz"][kind]
         if rate == 0:
@@ -114,8 +114,9 @@ def _notes(result: dict, sink: AuditSink, cfg: Config) -> list[str]:
 
 def audit_file(path: str | Path, cfg: Config, sysid: Optional[int] = None,
                extra_sinks: Iterable[Sink] = ()) -> dict:
-    """Audit one tlog. Raises :class:`MavnavError` (one line) if it is unreadable."""
-    src = TlogSource(path, cfg.ingest, sysid=sysid)
+    """Audit one recorded log (tlog, DataFlash or ULog). Raises :class:`MavnavError`
+    (one line) if it is unreadable."""
+    src = open_log(path, cfg.ingest, sysid=sysid)
     sink = AuditSink()
     summary: RunSummary = run(src, cfg, [sink, *extra_sinks], info={"source": str(path), "live": False})
     stats = src.stats
@@ -134,6 +135,7 @@ def audit_file(path: str | Path, cfg: Config, sysid: Optional[int] = None,
         "epochs": summary.epochs,
         "reboots": summary.reboots,
         "mode": cfg.monitor.mode,
+        "format": stats.format,
         "inputs": {
             "rates_hz": rates,
             "required_hz": need,
@@ -143,7 +145,7 @@ def audit_file(path: str | Path, cfg: Config, sysid: Optional[int] = None,
         "sink_failures": summary.sink_failures,
         "ingest": stats.to_dict(),
     }
-    result["notes"] = _notes(result, sink, cfg)
+    result["notes"] = _notes(result, sink, cfg, stats)
     return result
 
 

@@ -73,7 +73,9 @@ class RangeHeight:
     boot: int
     height_agl_m: float
     range_m: float  # raw slant range along the sensor axis
-    source: str  # "DISTANCE_SENSOR" or "RANGEFINDER"
+    source: str  # "DISTANCE_SENSOR", "RANGEFINDER", or the onboard log's message ("RFND[0]", "distance_sensor")
+    min_m: float = float("nan")  # the sensor's valid range as the reading reports it (NaN: unknown)
+    max_m: float = float("nan")
 
 
 @dataclass(frozen=True, slots=True)
@@ -148,6 +150,7 @@ class Rejected:
     detail: str
     t_us: Optional[int] = None
     boot: Optional[int] = None
+    sensor: Optional[str] = None  # the measurement kind refused ("range", "gnss", ...) when it was one
 
 
 Measurement = Union[SpecificForceUp, BaroHeight, GnssHeight, RangeHeight, AutopilotHeight]

@@ -21,7 +21,7 @@ from ..config import load_config
 from ..errors import MavnavError
 from ..fleet.cache import DEFAULT_CACHE_DIR
 from ..fleet.task import audit_one
-from ..ingest import expand_tlog_paths
+from ..ingest import expand_log_paths
 from ..sinks.csv_sink import CsvSink
 from . import main
 from .run import common_options
@@ -103,14 +103,14 @@ def audit_cmd(paths, json_path, fail_on, workers, scheduler, fleet_report, cache
     slots: list = []
     for p in paths:
         if Path(p).exists():
-            slots += [f for f in expand_tlog_paths([p]) if f not in slots]
+            slots += [f for f in expand_log_paths([p]) if f not in slots]
         else:
             slots.append({"path": str(p), "error": "no such file or directory"})
     files = [x for x in slots if isinstance(x, Path)]
     missing = [x for x in slots if isinstance(x, dict)]
     file_results: list[dict] = []
     if not files and not missing:
-        raise MavnavError("no .tlog files in " + ", ".join(paths))
+        raise MavnavError("no .tlog, .bin or .ulg files in " + ", ".join(paths))
     in_process = csv_path or viewer_kw.get("rrd") or viewer_kw.get("connect") \
         or viewer_kw.get("viewer") not in (None, "none")
     fleet = workers > 1 or scheduler or fleet_report or cache_dir or rerun

@@ -15,7 +15,7 @@ import click
 
 from ..config import Config, load_config
 from ..errors import MavnavError
-from ..ingest import LiveSource, TlogSource
+from ..ingest import LiveSource, open_log
 from ..pipeline import run as run_pipeline
 from ..report import AlarmEvent, RunSummary
 from ..sinks.base import Sink
@@ -152,12 +152,13 @@ def run_cmd(connection: str, config_path, sysid, csv_path, **kw) -> None:
 @viewer_options
 @emit_options
 def replay_cmd(tlog: str, speed: str, config_path, sysid, csv_path, **kw) -> None:
-    """Replay a recorded tlog through the monitor (the same pipeline as ``run``)."""
+    """Replay a recorded log (tlog, ArduPilot DataFlash .bin or PX4 .ulg, detected by
+    content) through the monitor: the same pipeline as ``run``."""
     emit_kw, rest = split_emit_options(kw)
     viewer_kw, rest = _split_viewer(rest)
     pace = parse_speed(speed)
     cfg = load_config(config_path)
-    source = TlogSource(tlog, cfg.ingest, sysid=sysid)
+    source = open_log(tlog, cfg.ingest, sysid=sysid)
     # a paced replay is watched as it goes: the viewer logs as for a live run
     sinks = build_sinks(cfg, csv_path, pace is not None, viewer_kw, emit_kw)
     try:

@@ -612,35 +612,35 @@ class Normaliser:
             lo_m = f["min_distance"] / 100.0
             hi_m = f["max_distance"] / 100.0 if f["max_distance"] > 0 else self.cfg.rangefinder_max_m
             if f["signal_quality"] == DISTANCE_SENSOR_QUALITY_INVALID:
-                self._reject(recv_s, "invalid_quality", f"{name} signal_quality 1 (invalid)", t_us, boot)
+                self._reject(recv_s, "invalid_quality", f"{name} signal_quality 1 (invalid)", t_us, boot, sensor="range")
                 return
         else:
             raw = f["distance"]
             range_m = raw  # m
             lo_m, hi_m = self.cfg.rangefinder_min_m, self.cfg.rangefinder_max_m
             if not _finite(range_m):
-                self._reject(recv_s, "nan", f"{name} with a non-finite distance", t_us, boot)
+                self._reject(recv_s, "nan", f"{name} with a non-finite distance", t_us, boot, sensor="range")
                 return
             if range_m < 0:
-                self._reject(recv_s, "impossible", f"{name} negative distance {range_m:.3g} m", t_us, boot)
+                self._reject(recv_s, "impossible", f"{name} negative distance {range_m:.3g} m", t_us, boot, sensor="range")
                 return
         if not lo_m <= range_m <= hi_m:
-            self._reject(recv_s, "out_of_range", f"{name} {range_m:.3f} m outside [{lo_m:g}, {hi_m:g}] m", t_us, boot)
+            self._reject(recv_s, "out_of_range", f"{name} {range_m:.3f} m outside [{lo_m:g}, {hi_m:g}] m", t_us, boot, sensor="range")
             return
         if self._stuck(raw, t_us, boot):
-            self._reject(recv_s, "stuck", f"{name} reads {range_m:.3f} m for {self.cfg.rangefinder_stuck_s} s while the baro moved", t_us, boot)
+            self._reject(recv_s, "stuck", f"{name} reads {range_m:.3f} m for {self.cfg.rangefinder_stuck_s} s while the baro moved", t_us, boot, sensor="range")
             return
         if not self._admit("range", t_us, recv_s, boot):
             return
         q = self.att.latest(t_us)
         if q is None:
-            self._reject(recv_s, "no_attitude", f"{name}: no attitude for tilt correction", t_us, boot)
+            self._reject(recv_s, "no_attitude", f"{name}: no attitude for tilt correction", t_us, boot, sensor="range")
             return
         c = cos_tilt(down_row_from_quat(q))
         if c < self._cos_max_tilt:
-            self._reject(recv_s, "tilt", f"{name}: tilted {math.degrees(math.acos(max(-1.0, min(1.0, c)))):.0f} deg", t_us, boot)
+            self._reject(recv_s, "tilt", f"{name}: tilted {math.degrees(math.acos(max(-1.0, min(1.0, c)))):.0f} deg", t_us, boot, sensor="range")
             return
-        self._yield("range", RangeHeight(t_us, recv_s, boot, range_m * c, range_m, name))
+        self._yield("range", RangeHeight(t_us, recv_s, boot, range_m * c, range_m, name, lo_m, hi_m))
 
     def _stuck(self, raw, t_us, boot) -> bool:
         run = self._run
@@ -743,9 +743,11 @@ class Normaliser:
         self.stats.events[type(event).__name__] += 1
         self.out.append(event)
 
-    def _reject(self, recv_s: float, kind: str, detail: str, t_us: Optional[int] = None, boot: Optional[int] = None) -> None:
+    def _reject(self, recv_s: float, kind: str, detail: str, t_us: Optional[int] = None, boot: Optional[int] = None,
+                sensor: Optional[str] = None) -> None:
         self.stats.rejected[kind] += 1
-        self._emit(Rejected(recv_s=recv_s, kind=kind, detail=detail, t_us=t_us, boot=boot if boot is not None or t_us is None else self.clock.boot))
+        self._emit(Rejected(recv_s=recv_s, kind=kind, detail=detail, t_us=t_us,
+                            boot=boot if boot is not None or t_us is None else self.clock.boot, sensor=sensor))
 
     def _finalise_stats(self) -> None:
         st = self.stats

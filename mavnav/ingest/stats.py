@@ -68,6 +68,11 @@ class IngestStats:
     bytes_read: int = 0
     garbage_bytes: int = 0
     link_losses: int = 0
+    format: str = "tlog"  # "tlog", "live", "dataflash", "ulog"
+    firmware: str = ""  # onboard logs: e.g. "ArduCopter V4.1.3", "PX4 v1.14.0"
+    vehicle_kind: str = ""  # onboard logs: "copter", "plane", "rover", "sub", ...
+    damage: List[str] = field(default_factory=list)  # onboard logs: what could not be read, in words
+    missing: List[str] = field(default_factory=list)  # onboard logs: sensors the log lacks
 
     def to_dict(self) -> dict:
         """Plain JSON-ready dict (string keys, no dataclasses)."""

@@ -118,7 +118,7 @@ class Monitor:
             self._on_reboot(s)
             return []
         elif isinstance(s, Rejected):
-            if s.t_us is not None and s.detail.startswith(("DISTANCE_SENSOR", "RANGEFINDER")):
+            if s.t_us is not None and s.sensor == "range":
                 self.logic.on_range_refused(s.t_us, s.kind)
         elif isinstance(s, LinkLost):
             self._link_lost = True
