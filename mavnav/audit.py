@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from collections import Counter
 from pathlib import Path
-from typing import Iterable, Optional
+from typing import Iterable, Optional, Sequence
 
 from .config import Config
 from .errors import MavnavError
@@ -25,6 +25,8 @@ from .ingest import open_log
 from .pipeline import run
 from .report import SOURCES, AlarmEvent, EpochReport, RunSummary
 from .samples import BaroHeight, GnssHeight, RangeHeight, SpecificForceUp
+from .sim.effects import FaultedSource
+from .sim.faults import describe_fault, parse_faults
 from .sinks.base import Sink
 
 INPUT_KINDS = {SpecificForceUp: "imu", BaroHeight: "baro", GnssHeight: "gnss", RangeHeight: "rangefinder"}
@@ -113,10 +115,13 @@ def _notes(result: dict, sink: AuditSink, cfg: Config, stats) -> list[str]:
 
 
 def audit_file(path: str | Path, cfg: Config, sysid: Optional[int] = None,
-               extra_sinks: Iterable[Sink] = ()) -> dict:
+               extra_sinks: Iterable[Sink] = (), faults: Sequence = ()) -> dict:
     """Audit one recorded log (tlog, DataFlash or ULog). Raises :class:`MavnavError`
     (one line) if it is unreadable."""
     src = open_log(path, cfg.ingest, sysid=sysid)
+    faults = parse_faults(faults)
+    if faults:
+        src = FaultedSource(src, faults)
     sink = AuditSink()
     summary: RunSummary = run(src, cfg, [sink, *extra_sinks], info={"source": str(path), "live": False})
     stats = src.stats
@@ -145,6 +150,8 @@ def audit_file(path: str | Path, cfg: Config, sysid: Optional[int] = None,
         "sink_failures": summary.sink_failures,
         "ingest": stats.to_dict(),
     }
+    if faults:
+        result["injected"] = [dict(describe_fault(f), **rep) for f, rep in zip(faults, src.injector.report())]
     result["notes"] = _notes(result, sink, cfg, stats)
     return result
 

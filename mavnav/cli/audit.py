@@ -22,6 +22,7 @@ from ..errors import MavnavError
 from ..fleet.cache import DEFAULT_CACHE_DIR
 from ..fleet.task import audit_one
 from ..ingest import expand_log_paths
+from ..sim.faults import parse_faults
 from ..sinks.csv_sink import CsvSink
 from . import main
 from .run import common_options
@@ -85,7 +86,7 @@ def format_table(r: dict) -> str:
 @common_options
 @viewer_options
 def audit_cmd(paths, json_path, fail_on, workers, scheduler, fleet_report, cache_dir, rerun, no_cache,
-              config_path, sysid, csv_path, **viewer_kw) -> None:
+              config_path, sysid, csv_path, inject, **viewer_kw) -> None:
     """Audit recorded tlogs (files or directories) without a viewer: alarms with
     times and sources, message rates and whether they support the
     time-to-alarm, channel availability, fused height against the
@@ -98,6 +99,7 @@ def audit_cmd(paths, json_path, fail_on, workers, scheduler, fleet_report, cache
     configuration, --sysid and the mavnav version and sources.
     """
     cfg = load_config(config_path)
+    faults = parse_faults(inject)  # a bad spec fails here, before any work
     # results come back in the order of the arguments (a directory's logs
     # sorted in its place); a missing path is reported in its place
     slots: list = []
@@ -129,7 +131,7 @@ def audit_cmd(paths, json_path, fail_on, workers, scheduler, fleet_report, cache
             _need("pyarrow.parquet"), _need("matplotlib")  # fail now, not after the whole fleet
         cache = None if no_cache else (cache_dir or DEFAULT_CACHE_DIR)
         run = run_fleet(files, cfg, sysid=sysid, workers=workers, scheduler=scheduler, cache_dir=cache,
-                        rerun=rerun, progress=Progress())
+                        rerun=rerun, progress=Progress(), faults=inject)
         file_results = list(run.results)
     else:
         show_bar = len(files) > 1 and sys.stderr.isatty()
@@ -140,7 +142,7 @@ def audit_cmd(paths, json_path, fail_on, workers, scheduler, fleet_report, cache
                 if csv_path:
                     extra.append(CsvSink(csv_path))
                 extra += make_viewer_sinks(live=False, **viewer_kw)
-                file_results.append(audit_one(f, cfg, sysid=sysid, extra_sinks=extra))
+                file_results.append(audit_one(f, cfg, sysid=sysid, extra_sinks=extra, faults=faults))
     it = iter(file_results)
     results: list[dict] = [x if isinstance(x, dict) else next(it) for x in slots]
     for r in results:

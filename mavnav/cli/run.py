@@ -17,6 +17,8 @@ from ..config import Config, load_config
 from ..errors import MavnavError
 from ..ingest import LiveSource, open_log
 from ..pipeline import run as run_pipeline
+from ..sim.effects import FaultedSource
+from ..sim.faults import parse_faults
 from ..report import AlarmEvent, RunSummary
 from ..sinks.base import Sink
 from ..sinks.csv_sink import CsvSink
@@ -26,7 +28,11 @@ from .viewer_options import make_viewer_sinks, viewer_options
 
 
 def common_options(f):
-    """``--config``, ``--sysid``, ``--csv``: shared by run, replay and audit."""
+    """``--config``, ``--sysid``, ``--csv``, ``--inject``: shared by run, replay and audit."""
+    f = click.option("--inject", "inject", multiple=True, metavar="FAULT",
+                     help="Inject a fault into the input's samples, as 'mavnav inject' does to a tlog "
+                          "(repeatable; e.g. gnss_step:onset=60,duration=20,magnitude=10). "
+                          "Onsets are vehicle time of the log.")(f)
     f = click.option("--csv", "csv_path", type=click.Path(dir_okay=False, writable=True), default=None,
                      help="Write the estimates of every epoch to this CSV file.")(f)
     f = click.option("--sysid", type=click.IntRange(1, 255), default=None,
@@ -112,7 +118,7 @@ def _split_viewer(kw: dict) -> tuple[dict, dict]:
 @common_options
 @viewer_options
 @emit_options
-def run_cmd(connection: str, config_path, sysid, csv_path, **kw) -> None:
+def run_cmd(connection: str, config_path, sysid, csv_path, inject, **kw) -> None:
     """Attach to a live autopilot link and monitor it until interrupted.
 
     CONNECTION is any pymavlink connection string: udpin:0.0.0.0:14550,
@@ -123,7 +129,10 @@ def run_cmd(connection: str, config_path, sysid, csv_path, **kw) -> None:
     emit_kw, rest = split_emit_options(kw)
     viewer_kw, rest = _split_viewer(rest)
     cfg = load_config(config_path)
-    source = LiveSource(connection, cfg.ingest, sysid=sysid)
+    faults = parse_faults(inject)
+    live = source = LiveSource(connection, cfg.ingest, sysid=sysid)
+    if faults:
+        source = FaultedSource(live, faults)
     stop = {"flag": False}
 
     def on_signal(signum, frame):
@@ -151,14 +160,17 @@ def run_cmd(connection: str, config_path, sysid, csv_path, **kw) -> None:
 @common_options
 @viewer_options
 @emit_options
-def replay_cmd(tlog: str, speed: str, config_path, sysid, csv_path, **kw) -> None:
+def replay_cmd(tlog: str, speed: str, config_path, sysid, csv_path, inject, **kw) -> None:
     """Replay a recorded log (tlog, ArduPilot DataFlash .bin or PX4 .ulg, detected by
     content) through the monitor: the same pipeline as ``run``."""
     emit_kw, rest = split_emit_options(kw)
     viewer_kw, rest = _split_viewer(rest)
     pace = parse_speed(speed)
     cfg = load_config(config_path)
+    faults = parse_faults(inject)
     source = open_log(tlog, cfg.ingest, sysid=sysid)
+    if faults:
+        source = FaultedSource(source, faults)
     # a paced replay is watched as it goes: the viewer logs as for a live run
     sinks = build_sinks(cfg, csv_path, pace is not None, viewer_kw, emit_kw)
     try:

@@ -77,11 +77,13 @@ def environment_key() -> dict:
             "pymavlink": _version("pymavlink"), "numpy": _version("numpy")}
 
 
-def cache_key(file_digest: str, cfg_json: str, sysid: Optional[int]) -> str:
-    """The key of one file's result (hex SHA-256)."""
+def cache_key(file_digest: str, cfg_json: str, sysid: Optional[int], faults: tuple = ()) -> str:
+    """The key of one file's result (hex SHA-256); injected faults (specs) are part of it."""
     doc = {"schema": SCHEMA, "file_sha256": file_digest,
            "config_sha256": hashlib.sha256(cfg_json.encode()).hexdigest(),
            "sysid": sysid, **environment_key()}
+    if faults:
+        doc["faults"] = list(faults)
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 

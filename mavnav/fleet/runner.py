@@ -209,15 +209,17 @@ class FleetRun:
 def run_fleet(files: Sequence[str | Path], cfg: Config, *, sysid: Optional[int] = None, workers: int = 1,
               scheduler=None, cache_dir: Optional[str | Path] = None, rerun: bool = False,
               progress: Optional[Callable[[FleetCounts, bool], None]] = None,
-              backend: Optional[str] = None) -> FleetRun:
+              backend: Optional[str] = None, faults: Sequence[str] = ()) -> FleetRun:
     """Audit ``files``; results in input order, each with ``result["fleet"]``
     (``sha256``, ``cached``, ``elapsed_s``, ``worker``...).
 
     ``cache_dir=None`` disables the cache; ``rerun=True`` recomputes every
     file and overwrites its entry. ``backend`` forces ``"serial"`` or
     ``"processes"`` (default: Dask with a scheduler, processes for more than
-    one worker and file, else serial).
+    one worker and file, else serial). ``faults`` (``mavnav inject`` specs)
+    are injected into every file's samples.
     """
+    faults = tuple(faults)
     t0 = time.monotonic()
     displays = [str(f) for f in files]
     abspaths = [os.path.abspath(f) for f in files]
@@ -225,7 +227,7 @@ def run_fleet(files: Sequence[str | Path], cfg: Config, *, sysid: Optional[int] 
     counts = FleetCounts(total=len(files))
     cache = ResultCache(cache_dir) if cache_dir is not None else None
     digests = _hash_all(abspaths) if cache is not None or scheduler is not None else [None] * len(files)
-    keys = [cache_key(d, cjson, sysid) if d is not None else None for d in digests]
+    keys = [cache_key(d, cjson, sysid, faults) if d is not None else None for d in digests]
     results: list[Optional[dict]] = [None] * len(files)
     report = progress or (lambda c, final=False: None)
 
@@ -238,7 +240,7 @@ def run_fleet(files: Sequence[str | Path], cfg: Config, *, sysid: Optional[int] 
             results[i] = r
             counts.skipped += 1
         else:
-            jobs.append((i, (ap, disp, cjson, sysid)))
+            jobs.append((i, (ap, disp, cjson, sysid, faults)))
     report(counts, False)
 
     if backend is None:

@@ -16,7 +16,7 @@ import socket
 import time
 import traceback
 from pathlib import Path
-from typing import Iterable, Optional
+from typing import Iterable, Optional, Sequence
 
 from ..audit import audit_file
 from ..config import Config, config_from_dict
@@ -35,11 +35,11 @@ def relabel(result: dict, display: str) -> dict:
 
 
 def audit_one(path: str | Path, cfg: Config, sysid: Optional[int] = None,
-              extra_sinks: Iterable[Sink] = (), display: Optional[str] = None) -> dict:
+              extra_sinks: Iterable[Sink] = (), display: Optional[str] = None, faults: Sequence = ()) -> dict:
     """Audit one file; an unreadable one gives ``{"path", "error"}`` instead of raising."""
     display = str(path) if display is None else display
     try:
-        result = audit_file(path, cfg, sysid=sysid, extra_sinks=extra_sinks)
+        result = audit_file(path, cfg, sysid=sysid, extra_sinks=extra_sinks, faults=faults)
     except MavnavError as exc:
         return {"path": display, "error": str(exc)}
     return relabel(result, display)
@@ -55,7 +55,7 @@ def config_json(cfg: Config) -> str:
     return json.dumps(cfg.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
 
 
-def audit_task(path: str, display: str, cfg_json: str, sysid: Optional[int] = None) -> dict:
+def audit_task(path: str, display: str, cfg_json: str, sysid: Optional[int] = None, faults: tuple = ()) -> dict:
     """The fleet task. Never raises for a bad file: any failure becomes ``{"path", "error"}``.
 
     ``result["fleet"]`` carries what legitimately differs between runs
@@ -64,7 +64,7 @@ def audit_task(path: str, display: str, cfg_json: str, sysid: Optional[int] = No
     t0, c0 = time.perf_counter(), time.process_time()
     info: dict = {"worker": f"{socket.gethostname()}:{os.getpid()}"}
     try:
-        result = audit_one(path, _config(cfg_json), sysid=sysid, display=display)
+        result = audit_one(path, _config(cfg_json), sysid=sysid, display=display, faults=faults)
     except Exception as exc:  # a bug must not stop the fleet: report it against the file
         result = {"path": display, "error": f"internal error: {type(exc).__name__}: {exc}"}
         info["traceback"] = traceback.format_exc(limit=20)

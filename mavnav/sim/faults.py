@@ -69,6 +69,11 @@ def parse_fault(spec: str) -> Fault:
         raise ConfigError(f"fault '{spec}': {_describe(exc.errors()[0])}") from None
 
 
+def parse_faults(specs) -> List[Fault]:
+    """Fault specs (strings) or :class:`Fault` objects -> validated faults."""
+    return [f if isinstance(f, Fault) else parse_fault(f) for f in specs]
+
+
 def window_mask(fault: Fault, t_s: np.ndarray) -> np.ndarray:
     """True where ``onset <= t < end`` (times on the fault's clock)."""
     t_s = np.asarray(t_s, dtype=float)
@@ -77,11 +82,11 @@ def window_mask(fault: Fault, t_s: np.ndarray) -> np.ndarray:
 
 def additive_offset(fault: Fault, t_s: np.ndarray) -> np.ndarray:
     """Offset of a step or ramp fault (metres or m/s^2), 0 outside its window."""
+    from .effects import height_error_m
+
     t_s = np.asarray(t_s, dtype=float)
     inside = window_mask(fault, t_s)
-    if fault.kind.endswith("_ramp"):
-        return np.where(inside, fault.magnitude * (t_s - fault.onset_s), 0.0)
-    return np.where(inside, float(fault.magnitude), 0.0)
+    return np.where(inside, height_error_m(fault, t_s), 0.0)
 
 
 def describe_fault(fault: Fault) -> dict:
@@ -145,6 +150,7 @@ def sidecar_path(tlog_path) -> str:
 __all__ = [
     "FAULT_SYNTAX_HELP",
     "parse_fault",
+    "parse_faults",
     "window_mask",
     "additive_offset",
     "describe_fault",

@@ -38,6 +38,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mav2
 from ..atmosphere import P0_PA, height_from_pressure_m, pressure_at_height_pa
 from ..errors import InputError
 from ..frames import down_row_from_euler
+from .effects import height_error_m, keeps, out_of_range_reading_m, spikes
 from .faults import describe_fault
 from .scenario import Fault
 
@@ -480,18 +481,12 @@ def _apply(f: Fault, st: _FaultState, msg, msgid: int, vt: float, originals, att
     """Change ``msg`` in place for fault ``f``. Returns True if changed, "drop", or False."""
     k = f.kind
     if k == "rate_drop":
-        keep_every = max(1, int(round(1.0 / f.magnitude)))
         c = st.counters.get(msgid, 0)
         st.counters[msgid] = c + 1
-        return "drop" if c % keep_every else False
+        return False if keeps(f, c) else "drop"
     if k.startswith("gnss_"):
         if k in ("gnss_step", "gnss_ramp", "gnss_noise"):
-            if k == "gnss_step":
-                dh = f.magnitude
-            elif k == "gnss_ramp":
-                dh = f.magnitude * (vt - f.onset_s)
-            else:
-                dh = f.magnitude * float(st.rng.standard_normal())
+            dh = height_error_m(f, vt, st.rng)
             d_mm = int(round(dh * 1000))
             msg.alt = int(msg.alt + d_mm)
             if getattr(msg, "alt_ellipsoid", 0):
@@ -525,12 +520,11 @@ def _apply(f: Fault, st: _FaultState, msg, msgid: int, vt: float, originals, att
                 else:
                     msg.current_distance = int(min(65535, max(0, round(f.magnitude * 100))))
             elif k == "rng_spikes":
-                if st.rng.random() >= f.effective_probability:
+                if not spikes(f, st.rng):
                     return False
                 msg.current_distance = int(min(65535, max(0, msg.current_distance + round(f.magnitude * 100))))
             elif k == "rng_out_of_range":
-                beyond = 1.0 if f.magnitude is None else f.magnitude
-                msg.current_distance = int(min(65535, msg.max_distance + round(beyond * 100)))
+                msg.current_distance = int(min(65535, round(out_of_range_reading_m(f, msg.max_distance / 100.0) * 100)))
             return True
         # RANGEFINDER (ArduPilot), metres
         if k == "rng_dropout":
@@ -540,12 +534,11 @@ def _apply(f: Fault, st: _FaultState, msg, msgid: int, vt: float, originals, att
         elif k == "rng_stuck":
             msg.distance = _hold(st, originals, msgid, "distance", msg.distance) if f.magnitude is None else f.magnitude
         elif k == "rng_spikes":
-            if st.rng.random() >= f.effective_probability:
+            if not spikes(f, st.rng):
                 return False
             msg.distance = msg.distance + f.magnitude
         elif k == "rng_out_of_range":
-            beyond = 1.0 if f.magnitude is None else f.magnitude
-            msg.distance = (rng_max_m if rng_max_m is not None else msg.distance) + beyond
+            msg.distance = out_of_range_reading_m(f, rng_max_m if rng_max_m is not None else msg.distance)
         return True
     if k.startswith("baro_"):
         if k == "baro_freeze":
@@ -555,7 +548,7 @@ def _apply(f: Fault, st: _FaultState, msg, msgid: int, vt: float, originals, att
             else:
                 msg.press_abs = _hold(st, originals, msgid, "press_abs", msg.press_abs)
             return True
-        dh = f.magnitude if k == "baro_step" else f.magnitude * (vt - f.onset_s)
+        dh = height_error_m(f, vt)
         if msgid == ID_HIGHRES_IMU:
             if not msg.abs_pressure > 0:
                 return False
@@ -567,7 +560,7 @@ def _apply(f: Fault, st: _FaultState, msg, msgid: int, vt: float, originals, att
     if k == "accel_bias_step":
         d = down_row_from_euler(att[0], att[1])
         # f_up = -(down_row . f_b): adding -m * down_row to f_b adds m to f_up
-        dx, dy, dz = (-f.magnitude * c for c in d)
+        dx, dy, dz = (-height_error_m(f, vt) * c for c in d)
         if msgid == ID_HIGHRES_IMU:
             msg.xacc, msg.yacc, msg.zacc = msg.xacc + dx, msg.yacc + dy, msg.zacc + dz
         else:

@@ -30,6 +30,7 @@ import numpy as np
 
 from .. import frames
 from .encode import encode_tlog
+from .effects import height_error_m, keeps, out_of_range_reading_m, spikes
 from .faults import active_labels, additive_offset, describe_fault, sidecar_path, window_mask, write_sidecar
 from .scenario import MESSAGE_TYPES, Fault, Scenario
 from .sensors import (
@@ -282,7 +283,7 @@ def simulate(scenario: Scenario, seed: Optional[int] = None, *, encode: bool = T
                 alt = alt + additive_offset(f, t + off)
             elif f.kind == "gnss_noise":
                 m = window_mask(f, t + off)
-                alt = alt + np.where(m, f.magnitude * _rng(seed, _S_FAULT + fi).standard_normal(n), 0.0)
+                alt = alt + np.where(m, height_error_m(f, t + off, _rng(seed, _S_FAULT + fi)), 0.0)
         s["sent"] = np.ones(n, dtype=bool)
         for f in faults:
             if f.kind == "gnss_dropout":
@@ -332,11 +333,10 @@ def simulate(scenario: Scenario, seed: Optional[int] = None, *, encode: bool = T
                     reading = np.where(m, f.magnitude, reading)
                     quality = np.where(m, rf.quality, quality)
             elif f.kind == "rng_spikes":
-                hit = m & (_rng(seed, _S_FAULT + fi).random(t_r.size) < f.effective_probability)
+                hit = m & spikes(f, _rng(seed, _S_FAULT + fi), t_r.size)
                 reading = np.where(hit, reading + f.magnitude, reading)
             elif f.kind == "rng_out_of_range":
-                beyond = 1.0 if f.magnitude is None else f.magnitude
-                reading = np.where(m, rf.max_m + beyond, reading)
+                reading = np.where(m, out_of_range_reading_m(f, rf.max_m), reading)
         rng_series = {"t_sim": t_r, "range_m": reading, "quality": quality, "slant_true_m": slant}
         for name in ("DISTANCE_SENSOR", "RANGEFINDER"):
             if name not in streams:
@@ -394,9 +394,8 @@ def simulate(scenario: Scenario, seed: Optional[int] = None, *, encode: bool = T
             elif f.kind == "link_loss":
                 recv &= ~m
             elif f.kind == "rate_drop" and name != "HEARTBEAT" and (f.messages is None or name in f.messages):
-                keep_every = max(1, int(round(1.0 / f.magnitude)))
                 j = np.cumsum(m) - 1  # index within the window
-                sent &= ~(m & (j % keep_every != 0))
+                sent &= ~(m & ~keeps(f, j))
         s["sent"] = sent
         s["received"] = sent & recv
     t_models = time.perf_counter()

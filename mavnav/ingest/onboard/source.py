@@ -185,7 +185,7 @@ class _Builder:
             first = p[t - t[0] <= rc.startup_window_s * 1e6]
             p_ref, origin = float(first.mean()), "startup"
         h = heights_from_pressures_m(p, p_ref)
-        self.refs.append(ReferenceSet(int(t[0]), t[0] * 1e-6, 0, "baro", p_ref, None, origin))
+        self.refs.append(ReferenceSet(int(t[0]), int(t[0]) * 1e-6, 0, "baro", p_ref, None, origin))
         self.stats.references["baro"] = ReferenceRecord(p_ref, origin, None)
         self.cols.append((t, _BARO, h, p))
         return np.vstack([t.astype(float), h])
@@ -215,7 +215,7 @@ class _Builder:
         if ref is None:
             first = alt[t - t[0] <= rc.startup_window_s * 1e6]
             ref, origin = float(first.mean()), "startup"
-        self.refs.append(ReferenceSet(int(t[0]), t[0] * 1e-6, 0, "gnss", ref, ref, origin))
+        self.refs.append(ReferenceSet(int(t[0]), int(t[0]) * 1e-6, 0, "gnss", ref, ref, origin))
         self.stats.references["gnss"] = ReferenceRecord(ref, origin, ref)
         self.cols.append((t, _GNSS, alt - ref, alt, sig, fix, sats))
         return ref
