@@ -134,6 +134,14 @@ class SampleFaults:
     # ------------------------------------------------------------------
 
     def feed(self, s) -> List[object]:
+        """What follows from one sample: itself (changed or not), nothing, or events."""
+        out = self._feed(s)
+        kind = _KIND.get(type(s))
+        if kind is not None:
+            self._last[kind] = s  # the original: holds repeat the last value before the window
+        return out
+
+    def _feed(self, s) -> List[object]:
         t_us = getattr(s, "t_us", None)
         boot = getattr(s, "boot", None)
         if isinstance(s, Reboot):
@@ -261,11 +269,6 @@ class SampleFaults:
                             s.t_us, s.boot, sensor="range")
         return dataclasses.replace(s, range_m=reading, height_agl_m=reading * cos_t)
 
-    def remember(self, s) -> None:
-        kind = _KIND.get(type(s))
-        if kind is not None:
-            self._last[kind] = s
-
 
 class FaultedSource:
     """A source with faults applied to its samples; ``stats`` and the rest pass through."""
@@ -281,9 +284,7 @@ class FaultedSource:
     def __iter__(self):
         self.injector = inj = SampleFaults(self.faults)
         for s in self.source:
-            out = inj.feed(s)
-            inj.remember(s)
-            yield from out
+            yield from inj.feed(s)
 
 
 __all__ = ["height_error_m", "keeps", "spikes", "out_of_range_reading_m", "SampleFaults", "FaultedSource"]

@@ -230,6 +230,9 @@ def _decode(log: _Log, path: str) -> OnboardRecord:
     _datums(log, rec)
     _stream_damage(log, rec)
     rec.damage.extend(log.damage)
+    if all(getattr(rec, k) is None for k in ("imu", "baro", "gnss", "rangefinder")):
+        why = "; ".join(rec.damage) or "no IMU, baro, GNSS or rangefinder records"
+        raise InputError(f"{path}: DataFlash log with nothing mavnav can use ({why})")
     return rec
 
 

@@ -1,0 +1,371 @@
+"""The real-flight scorecard: mavnav on every real flight it can find, as it is.
+
+    python bench/realflights.py [--workers 2] [--no-faults] [--limit N] [--json out.json]
+
+Finds flights in ``../shared/tlogs/{real,other}``, ``../shared/flightlogs``
+and the local cache that ``../shared/flightlogs/fetch_more.sh`` fills
+(``~/.cache/mavnav-flightlogs``, or ``$MAVNAV_FLIGHTLOGS``), says how many of
+each it found, and prints:
+
+1. per flight and in total: hours, vehicle, input rates, the share of time
+   per state for each source, sensor alarm events per hour, fused height
+   against the autopilot's (RMS, max), and the share of epochs each channel
+   was used;
+2. faults injected (``--inject`` semantics, :mod:`mavnav.sim.effects`) at
+   25, 50 and 75 % of every flight whose IMU and baro run at 5 Hz or more:
+   GNSS step 10 m, GNSS ramp 0.5 m/s, baro step 5 m, baro ramp 0.5 m/s,
+   rangefinder stuck and reading zero (where there is one), accelerometer
+   bias 0.5 m/s^2, each for 20 s. For each: detected, time-to-alarm, source
+   named, wrong exclusions (a healthy source in alarm during the fault) and
+   hazardous output (fused height more than 3 m from the same flight's
+   unfaulted fused height while the overall state is nominal or caution);
+3. the same runs for ``paper`` mode and ``bench/autopilot_baseline.py``.
+
+Numbers are what mavnav does today, good or bad. The fetched logs have no
+licence: they are read from the cache, never copied.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Dict, List, Optional, Sequence
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent))
+
+from autopilot_baseline import BaselineConfig, run_baseline  # noqa: E402
+from scoremetrics import alarm_onsets, detect, tta_stats  # noqa: E402
+
+from mavnav.audit import AuditSink, audit_file  # noqa: E402
+from mavnav.config import config_from_dict  # noqa: E402
+from mavnav.errors import MavnavError  # noqa: E402
+from mavnav.ingest import open_log  # noqa: E402
+from mavnav.pipeline import run  # noqa: E402
+from mavnav.sim.effects import SampleFaults  # noqa: E402
+from mavnav.sim.faults import parse_fault  # noqa: E402
+from mavnav.sinks.base import Sink  # noqa: E402
+
+SHARED = HERE.parent.parent / "shared"
+SENSOR_SOURCES = ("gnss", "rangefinder", "baro_ins")
+ONSET_FRACS = (0.25, 0.5, 0.75)
+FAULT_DURATION_S = 20.0
+HAZARD_M = 3.0
+MIN_RATE_HZ = 5.0
+
+FAULTS = (
+    ("gnss_step", "gnss_step:magnitude=10", "gnss"),
+    ("gnss_ramp", "gnss_ramp:magnitude=0.5", "gnss"),
+    ("baro_step", "baro_step:magnitude=5", "baro_ins"),
+    ("baro_ramp", "baro_ramp:magnitude=0.5", "baro_ins"),
+    ("rng_stuck", "rng_stuck", "rangefinder"),
+    ("rng_zero", "rng_stuck:magnitude=0", "rangefinder"),
+    ("accel_bias", "accel_bias_step:magnitude=0.5", "baro_ins"),
+)
+CONTENDERS = ("adaptive", "paper", "baseline")
+
+
+# ---------------------------------------------------------------- discovery
+
+
+def cache_dir() -> Path:
+    return Path(os.environ.get("MAVNAV_FLIGHTLOGS", Path.home() / ".cache" / "mavnav-flightlogs"))
+
+
+def find_flights() -> Dict[str, List[Path]]:
+    groups = {
+        "shared/tlogs/real": sorted((SHARED / "tlogs" / "real").glob("*.tlog")),
+        "shared/tlogs/other": sorted((SHARED / "tlogs" / "other").glob("*.tlog")),
+        "shared/flightlogs": sorted(p for p in (SHARED / "flightlogs").glob("*")
+                                    if p.suffix.lower() in (".tlog", ".bin", ".ulg")),
+        "cache (fetch_more.sh)": sorted(p for p in cache_dir().glob("*")
+                                        if p.suffix.lower() in (".tlog", ".bin", ".ulg")),
+    }
+    return groups
+
+
+def is_sitl(path: Path) -> bool:
+    return path.name.startswith("SITL_") or path.parent.name == "other"
+
+
+# ---------------------------------------------------------------- one flight
+
+
+class _Trace(Sink):
+    name = "trace"
+
+    def __init__(self):
+        self.t: List[float] = []
+        self.h: List[float] = []
+        self.overall: List[str] = []
+
+    def epoch(self, r) -> None:
+        self.t.append(r.t_s)
+        self.h.append(r.height_fused_m)
+        self.overall.append(r.overall)
+
+
+def _cfg(mode: str):
+    return config_from_dict({"monitor": {"mode": mode}})
+
+
+def _span(samples) -> tuple:
+    ts = [s.t_us for s in samples if getattr(s, "t_us", None) is not None and getattr(s, "boot", 0) == 0]
+    return (min(ts) * 1e-6, max(ts) * 1e-6) if ts else (0.0, 0.0)
+
+
+def _contender(mode: str, samples: list) -> dict:
+    if mode == "baseline":
+        cfg = _cfg("adaptive")
+        b = run_baseline(samples, cfg.sensors, BaselineConfig())
+        alarms_on = _alarm_intervals(b.alarms)
+        overall = np.array(["alarm" if any(a <= t < z for a, z in alarms_on) else "nominal" for t in b.t_s])
+        return {"t": np.asarray(b.t_s, float), "h": np.asarray(b.height_m, float), "overall": overall,
+                "alarms": list(b.alarms)}
+    tr = _Trace()
+    summary = run(samples, _cfg(mode), [tr])
+    return {"t": np.asarray(tr.t, float), "h": np.asarray(tr.h, float), "overall": np.asarray(tr.overall),
+            "alarms": list(summary.alarms)}
+
+
+def _alarm_intervals(alarms) -> list:
+    out, open_ = [], {}
+    for ev in alarms:
+        if ev.state == "alarm" and ev.previous != "alarm":
+            open_[ev.source] = ev.t_s
+        elif ev.previous == "alarm" and ev.source in open_:
+            out.append((open_.pop(ev.source), ev.t_s))
+    out += [(a, math.inf) for a in open_.values()]
+    return out
+
+
+def flight_job(spec: dict) -> dict:
+    """Part 1 for one flight, and part 2/3 if asked and the inputs are fast enough."""
+    path = spec["path"]
+    t0 = time.perf_counter()
+    out = {"path": path, "sitl": spec["sitl"]}
+    try:
+        res = audit_file(path, _cfg("adaptive"))
+    except MavnavError as exc:
+        out["error"] = str(exc)
+        return out
+    out["audit"] = _part1(res)
+    rates = res["inputs"]["rates_hz"]
+    fast = rates["imu"] >= MIN_RATE_HZ and rates["baro"] >= MIN_RATE_HZ
+    out["fast"] = fast
+    if spec["faults"] and fast:
+        out["faults"] = _part2(path, rates)
+    out["wall_s"] = round(time.perf_counter() - t0, 2)
+    return out
+
+
+def _part1(res: dict) -> dict:
+    ing = res["ingest"]
+    dur = res["duration_s"]
+    alarm_events = Counter(a["source"] for a in res["alarms"] if a["state"] == "alarm")
+    avail = res["availability"]
+    return {
+        "duration_s": dur,
+        "format": res.get("format"),
+        "vehicle": ing.get("firmware") or _mav_type(ing.get("vehicle")),
+        "rates_hz": res["inputs"]["rates_hz"],
+        "states": {s: avail[s] for s in (*SENSOR_SOURCES, "input", "overall") if s in avail},
+        "alarms_per_h": {s: (alarm_events[s] / (dur / 3600) if dur > 0 else 0.0) for s in SENSOR_SOURCES},
+        "alarm_events": sum(alarm_events[s] for s in SENSOR_SOURCES),
+        "caution_share": {s: avail[s]["caution"] for s in SENSOR_SOURCES if s in avail},
+        "rms_m": res["fused_vs_autopilot_rms_m"],
+        "max_m": res["fused_vs_autopilot_max_m"],
+        "used": avail.get("channels_used", {}),
+        "samples": {k: ing["samples"].get(k, 0) for k in ("gnss", "baro", "range")},
+        "notes": res["notes"],
+    }
+
+
+def _mav_type(v) -> str:
+    if not v:
+        return ""
+    return {1: "plane", 2: "copter", 12: "sub", 13: "copter", 14: "copter", 19: "vtol", 20: "vtol"}.get(
+        v.get("mav_type"), f"type {v.get('mav_type')}")
+
+
+def _part2(path: str, rates: dict) -> List[dict]:
+    cfg = _cfg("adaptive")
+    base = list(open_log(path, cfg.ingest))
+    t_lo, t_hi = _span(base)
+    clean = {m: _contender(m, base) for m in CONTENDERS}
+    rows = []
+    for name, spec, source in FAULTS:
+        if source == "rangefinder" and rates.get("rangefinder", 0.0) <= 0.0:
+            continue
+        for frac in ONSET_FRACS:
+            onset = t_lo + frac * (t_hi - t_lo)
+            end = min(onset + FAULT_DURATION_S, t_hi)
+            if end - onset < 5.0:
+                continue
+            fault = parse_fault(f"{spec},onset={onset:.3f},duration={end - onset:.3f}")
+            faulted = list(SampleFaults([fault]).apply(base))
+            row = {"fault": name, "source": source, "onset_s": round(onset, 2), "end_s": round(end, 2)}
+            for m in CONTENDERS:
+                r = _contender(m, faulted)
+                d = detect(r["alarms"], onset, end, source, grace_s=2.0)
+                wrong = sorted({ev.source for ev in alarm_onsets(r["alarms"])
+                                if onset <= ev.t_s <= end + 2.0 and ev.source in SENSOR_SOURCES and ev.source != source})
+                row[m] = {"detected": d.detected, "tta_s": d.tta_s, "isolated": d.isolated,
+                          "blamed": list(d.first_sources), "wrong": wrong,
+                          "hazard_s": _hazard_s(r, clean[m], onset, end)}
+            rows.append(row)
+    return rows
+
+
+def _hazard_s(r: dict, clean: dict, onset: float, end: float) -> float:
+    """Seconds of output more than HAZARD_M from the unfaulted output while nominal/caution."""
+    t, h, st = r["t"], r["h"], r["overall"]
+    if t.size == 0 or clean["t"].size == 0:
+        return 0.0
+    w = (t >= onset) & (t <= end + 2.0)
+    if not w.any():
+        return 0.0
+    h0 = np.interp(t[w], clean["t"], clean["h"])
+    trusted = np.isin(st[w], ("nominal", "caution"))
+    bad = trusted & np.isfinite(h[w]) & (np.abs(h[w] - h0) > HAZARD_M)
+    if not bad.any():
+        return 0.0
+    dt = np.diff(t[w], append=t[w][-1])
+    return float(dt[bad].sum())
+
+
+# ---------------------------------------------------------------- report
+
+
+def fmt(v, nd=2) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-"
+    return f"{v:.{nd}f}"
+
+
+def pct(v) -> str:
+    return "-" if v is None else f"{100 * v:.0f}"
+
+
+def report(groups: Dict[str, List[Path]], results: List[dict], wall: float, args) -> str:
+    lines = []
+    p = lines.append
+    p(f"real-flight scorecard: {sum(len(v) for v in groups.values())} logs found "
+      + ", ".join(f"{k}: {len(v)}" for k, v in groups.items()) + f"; wall {wall:.0f} s")
+    ok = [r for r in results if "audit" in r]
+    for r in results:
+        if "error" in r:
+            p(f"  unreadable: {r['path']}: {r['error']}")
+    p("")
+    p("## 1. Each flight as it is (adaptive mode)")
+    p("")
+    p("| flight | kind | min | vehicle | imu/baro/gnss/rng Hz | gnss N/C/U/A % | rng N/C/U/A % | baro N/C/U/A % | "
+      "overall N/C/U/A % | alarms/h | fused-AP RMS / max m | used g/r/b % |")
+    p("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    tot = Counter()
+    for r in ok:
+        a = r["audit"]
+        rt = a["rates_hz"]
+        st = a["states"]
+
+        def ncua(s):
+            x = st.get(s)
+            return "/".join(pct(x[k]) for k in ("nominal", "caution", "unavailable", "alarm")) if x else "-"
+
+        dur_h = a["duration_s"] / 3600
+        tot["h"] += dur_h
+        tot["alarms"] += a["alarm_events"]
+        for s in SENSOR_SOURCES:
+            tot[f"caution_{s}"] += a["caution_share"].get(s, 0.0) * a["duration_s"]
+        if a["rms_m"] is not None:
+            tot["sq"] += a["rms_m"] ** 2 * a["duration_s"]
+            tot["sq_t"] += a["duration_s"]
+        u = a["used"]
+        p(f"| {Path(r['path']).name} | {'SITL' if r['sitl'] else 'real'} | {a['duration_s'] / 60:.1f} | {a['vehicle']} | "
+          f"{rt['imu']:.0f}/{rt['baro']:.0f}/{rt['gnss']:.1f}/{rt['rangefinder']:.0f} | {ncua('gnss')} | "
+          f"{ncua('rangefinder')} | {ncua('baro_ins')} | {ncua('overall')} | "
+          f"{a['alarm_events'] / dur_h if dur_h > 0 else 0:.1f} | {fmt(a['rms_m'])} / {fmt(a['max_m'])} | "
+          f"{pct(u.get('gnss'))}/{pct(u.get('rangefinder'))}/{pct(u.get('baro'))} |")
+    hours = tot["h"]
+    p("")
+    p(f"Total: {len(ok)} flights, {hours:.2f} h; sensor alarm events {tot['alarms']} "
+      f"({tot['alarms'] / hours if hours else 0:.1f}/h); time in caution: "
+      + ", ".join(f"{s} {100 * tot[f'caution_{s}'] / (hours * 3600) if hours else 0:.1f} %" for s in SENSOR_SOURCES)
+      + f"; fused vs autopilot RMS (time-weighted) "
+      f"{math.sqrt(tot['sq'] / tot['sq_t']) if tot['sq_t'] else float('nan'):.2f} m.")
+    faulted = [row for r in ok for row in r.get("faults", [])]
+    if faulted:
+        n_fl = sum(1 for r in ok if r.get("faults"))
+        p("")
+        p(f"## 2-3. Faults injected into {n_fl} flights with IMU and baro at {MIN_RATE_HZ:g} Hz or more "
+          f"({len(faulted)} runs per contender; onsets at {', '.join(f'{int(100 * f)} %' for f in ONSET_FRACS)} "
+          f"of the flight, {FAULT_DURATION_S:g} s each)")
+        p("")
+        p("| fault | runs | " + " | ".join(f"{m}: detected / median TTA s / isolated / wrong excl. / hazardous"
+                                         for m in CONTENDERS) + " |")
+        p("|---|---|" + "---|" * len(CONTENDERS))
+        for name, _spec, _src in FAULTS + (("all", None, None),):
+            rows = [x for x in faulted if name == "all" or x["fault"] == name]
+            if not rows:
+                continue
+            cells = []
+            for m in CONTENDERS:
+                det = sum(x[m]["detected"] for x in rows)
+                med, _p95 = tta_stats(x[m]["tta_s"] for x in rows if x[m]["detected"])
+                iso = sum(x[m]["isolated"] for x in rows)
+                wrong = sum(bool(x[m]["wrong"]) for x in rows)
+                haz = sum(x[m]["hazard_s"] > 0 for x in rows)
+                cells.append(f"{det}/{len(rows)} / {fmt(med)} / {iso} / {wrong} / {haz}")
+            p(f"| {name} | {len(rows)} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("paths", nargs="*", help="only these logs (default: every log found)")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--no-faults", action="store_true", help="part 1 only")
+    ap.add_argument("--limit", type=int, default=0, help="at most this many flights (0: all)")
+    ap.add_argument("--json", default=None, help="write every result here")
+    ap.add_argument("--out", default=None, help="write the Markdown report here too")
+    args = ap.parse_args(argv)
+    groups = find_flights()
+    for k, v in groups.items():
+        print(f"found {len(v):3d} logs in {k}", file=sys.stderr)
+    paths = [Path(q) for q in args.paths] or [q for v in groups.values() for q in v]
+    if args.limit:
+        paths = paths[: args.limit]
+    specs = [{"path": str(q), "sitl": is_sitl(q), "faults": not args.no_faults} for q in paths]
+    t0 = time.perf_counter()
+    results: List[dict] = []
+    if args.workers > 1:
+        with get_context("spawn").Pool(args.workers) as pool:
+            for i, r in enumerate(pool.imap(flight_job, specs)):
+                results.append(r)
+                print(f"[{i + 1}/{len(specs)}] {Path(r['path']).name} {r.get('wall_s', '')}", file=sys.stderr)
+    else:
+        for i, s in enumerate(specs):
+            results.append(flight_job(s))
+            print(f"[{i + 1}/{len(specs)}] {Path(s['path']).name}", file=sys.stderr)
+    text = report(groups, results, time.perf_counter() - t0, args)
+    print(text)
+    if args.out:
+        Path(args.out).write_text(text)
+    if args.json:
+        Path(args.json).write_text(json.dumps(results, indent=1, default=str))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
