@@ -9,9 +9,14 @@ use), then times
   message types mavnav uses (decoded, CRC-checked by pymavlink), and
 * iterating :class:`mavnav.ingest.TlogSource` (every sample and event),
 
-and prints both rates and the ratio. Usage::
+and prints both rates and the ratio. Then, for onboard logs (every .bin and
+.ulg in ``../shared/flightlogs`` and in the directories given with
+``--onboard-dir``), the whole ``mavnav audit`` of each file (decode, samples,
+monitor) against the bare library pass over the same file: a pymavlink
+``DFReader_binary`` + ``recv_msg()`` loop to the end, or ``pyulog.ULog(path)``.
+Usage::
 
-    .venv/bin/python bench/ingest.py [--minutes 10] [--repeat 3]
+    .venv/bin/python bench/ingest.py [--minutes 10] [--repeat 3] [--onboard-dir ~/.cache/mavnav-flightlogs]
 """
 
 from __future__ import annotations
@@ -99,7 +104,66 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--minutes", type=float, default=10.0)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--onboard-dir", action="append", default=[],
+                    help="more directories of .bin/.ulg logs (besides ../shared/flightlogs)")
+    ap.add_argument("--onboard-only", action="store_true")
     args = ap.parse_args(argv)
+    if not args.onboard_only:
+        tlog_part(args)
+    onboard_part(args)
+    return 0
+
+
+def bare_dataflash(path: Path) -> int:
+    import contextlib
+    import io
+
+    from pymavlink import DFReader
+
+    with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
+        r = DFReader.DFReader_binary(str(path), zero_time_base=True)
+        n = 0
+        while r.recv_msg() is not None:
+            n += 1
+    return n
+
+
+def bare_ulog(path: Path) -> int:
+    import pyulog
+
+    u = pyulog.ULog(str(path))
+    return sum(len(d.data["timestamp"]) for d in u.data_list)
+
+
+def mavnav_audit(path: Path) -> int:
+    from mavnav.audit import audit_file
+    from mavnav.config import config_from_dict
+
+    return audit_file(path, config_from_dict({}))["epochs"]
+
+
+def onboard_part(args) -> None:
+    dirs = [Path(__file__).resolve().parents[2] / "shared" / "flightlogs"] + [Path(d).expanduser() for d in args.onboard_dir]
+    files = sorted(p for d in dirs if d.is_dir() for p in d.iterdir() if p.suffix.lower() in (".bin", ".ulg"))
+    print(f"onboard logs: {len(files)} found in {', '.join(str(d) for d in dirs)}")
+    tot = {"dataflash": [0.0, 0.0, 0], "ulog": [0.0, 0.0, 0]}
+    for p in files:
+        kind = "ulog" if p.suffix.lower() == ".ulg" else "dataflash"
+        bare = bare_ulog if kind == "ulog" else bare_dataflash
+        t_bare, n = best_of(bare, p, args.repeat)
+        t_mn, ep = best_of(mavnav_audit, p, args.repeat)
+        tot[kind][0] += t_bare
+        tot[kind][1] += t_mn
+        tot[kind][2] += 1
+        print(f"  {p.name:48s} bare {t_bare:6.3f} s ({n} records)  mavnav audit {t_mn:6.3f} s ({ep} epochs)  "
+              f"ratio audit/bare {t_mn / t_bare:5.2f}")
+    for kind, (tb, tm, n) in tot.items():
+        if n:
+            print(f"{kind}: {n} files, bare {tb:.2f} s, mavnav audit {tm:.2f} s: ratio audit/bare {tm / tb:.2f} "
+                  f"(goal <= 1.0)")
+
+
+def tlog_part(args) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "bench.tlog"
         t = time.perf_counter()
@@ -113,7 +177,6 @@ def main(argv=None) -> int:
     print(f"mavnav TlogSource         : {n_mn} samples+events in {t_mn:.2f} s = {n_mn / t_mn:,.0f} samples/s "
           f"({frames / t_mn:,.0f} frames/s)")
     print(f"speed-up (same file, time ratio pymavlink/mavnav): {t_py / t_mn:.1f}x")
-    return 0
 
 
 if __name__ == "__main__":
