@@ -1,0 +1,588 @@
+"""PX4 ULog (``.ulg``) -> :class:`~.record.OnboardRecord`.
+
+pyulog parses the file, keeping only the topics below
+(``message_name_filter_list``); the columns come straight from its numpy
+arrays (``Data.data``), never a Python object per row.
+
+Topics and fields, PX4 1.9 to 1.17 (fields are looked up, not assumed):
+
+* time: ``timestamp`` (us since boot); ``timestamp_sample`` instead where the
+  topic has it and it is nonzero (the sensor's sample time; 0 in the GPS
+  topics), for ``sensor_combined`` ``timestamp + accelerometer_timestamp_relative``
+  (unless that is ``INT32_MAX``, "invalid").
+* IMU: ``sensor_combined`` ``accelerometer_m_s2[0..2]`` (body FRD).
+* attitude: ``vehicle_attitude`` ``q[0..3]`` (w, x, y, z, body to NED).
+* baro: ``vehicle_air_data`` ``baro_pressure_pa`` (the estimator's baro, Pa;
+  its instance is the ``sensor_baro`` instance whose ``device_id`` equals
+  ``baro_device_id``, else 0); without it ``sensor_baro`` instance 0 (or the
+  lowest) ``pressure``: Pa since PX4 1.12, hPa before (told apart by
+  magnitude: a median below 2000 is hPa).
+* GNSS: ``vehicle_gps_position`` (the GPS the estimator uses; PX4 >= 1.14
+  logs it with ``sensor_gps``'s fields), else the ``sensor_gps`` instance with
+  the most rows. Altitude ``altitude_msl_m`` (m, PX4 >= 1.15) or ``alt``
+  (integer mm; metres if a log stores it as a float). ``epv`` (m) is sigma
+  when finite and > 0. Every fix type is kept (MAVLink numbering).
+* rangefinder: ``distance_sensor`` rows with ``orientation`` 25 (downward),
+  from the instance with the most such rows; ``valid`` is
+  ``signal_quality != 0`` (-1 "unknown" is valid; no field: all valid).
+* autopilot: ``vehicle_local_position`` ``-z`` above the EKF origin, rows
+  with ``z_valid`` (when logged); the origin altitude is ``ref_alt`` of the
+  latest row whose reference is valid (``z_global``, else ``xy_global``, else
+  ``ref_timestamp > 0``).
+* home: ``home_position`` ``alt`` (MSL) of the latest row with ``valid_alt``.
+* firmware from ``ver_sw_release`` (``sys_name``, default "PX4"), else the
+  ``ver_sw`` git hash; vehicle from ``vehicle_status`` (``is_vtol``,
+  ``vehicle_type`` or old ``is_rotary_wing``), else the ``MAV_TYPE`` parameter.
+
+Every series is sorted by time; rows with no time, non-finite values (or a
+quaternion far from unit norm) and repeated times are dropped, one line in
+``damage`` per series saying how many. Damage to the file itself (cut short,
+corrupt bytes pyulog skipped, logger dropouts, pyulog giving up mid-file)
+is reported there too; only a file that is not a ULog at all, or from which
+nothing usable can be read, raises :class:`~mavnav.errors.InputError`.
+
+pyulog reports corruption with ``print``: those lines are captured (per
+thread) into ``damage`` instead of reaching stdout. It reads through a file
+object that watches its seeks, so that a corrupt file cannot make it loop.
+"""
+
+from __future__ import annotations
+
+import builtins
+import io
+import os
+import sys
+import threading
+from collections import Counter
+from typing import Callable, Dict, List, Optional, Tuple
+
+import numpy as np
+
+from ...errors import InputError
+from .record import (
+    AttitudeSeries,
+    AutopilotSeries,
+    BaroSeries,
+    GnssSeries,
+    ImuSeries,
+    OnboardRecord,
+    RangeSeries,
+)
+
+ULOG_MAGIC = b"ULog\x01\x12\x35"
+HEADER_LEN = 16
+TOPICS = [
+    "sensor_combined",
+    "vehicle_attitude",
+    "vehicle_air_data",
+    "sensor_baro",
+    "vehicle_gps_position",
+    "sensor_gps",
+    "distance_sensor",
+    "vehicle_local_position",
+    "home_position",
+    "vehicle_status",
+]
+ROTATION_DOWNWARD_FACING = 25  # distance_sensor.orientation, MAV_SENSOR_ROTATION_PITCH_270
+RELATIVE_TIMESTAMP_INVALID = 0x7FFFFFFF  # sensor_combined.accelerometer_timestamp_relative
+HPA_BELOW = 2000.0  # sensor_baro.pressure medians below this are hPa (PX4 <= 1.11)
+QUAT_NORM_TOL = 0.1  # |q| outside 1 +- this is not an attitude (garbage rows)
+_BACK_SEEK_REGRESSIONS = 64  # seeks back behind an earlier seek back: a looping parser beyond this
+_VEHICLE_TYPE = {1: "copter", 2: "plane", 3: "rover"}  # vehicle_status.vehicle_type
+_MAV_TYPE = {1: "plane", 2: "copter", 3: "copter", 4: "copter", 10: "rover", 11: "boat", 12: "sub",
+             13: "copter", 14: "copter", 15: "copter", 19: "vtol", 20: "vtol", 21: "vtol", 22: "vtol",
+             23: "vtol", 24: "vtol", 25: "vtol", 29: "copter", 35: "copter"}
+
+Data = Dict[str, np.ndarray]
+
+
+# --------------------------------------------------------------------- pyulog's prints
+
+_capture = threading.local()
+
+
+def _pyulog_print(*args, **kwargs) -> None:
+    """Stands in for ``print`` inside ``pyulog.core``: kept for ``damage`` while
+    this thread decodes a ULog, a normal print otherwise."""
+    lines = getattr(_capture, "lines", None)
+    if lines is None or kwargs.get("file") not in (None, sys.stdout):
+        builtins.print(*args, **kwargs)
+        return
+    lines.append(kwargs.get("sep", " ").join(str(a) for a in args).strip())
+
+
+def _install_print_capture(core) -> None:
+    if getattr(core, "print", None) is not _pyulog_print:
+        core.print = _pyulog_print  # a module global shadows the builtin, for pyulog.core only
+
+
+# --------------------------------------------------------------------- guarded file
+
+class _Guard:
+    """Watches pyulog's reads and seeks: the first short read (a cut file),
+    where it stopped, and seeks back behind an earlier seek back. pyulog's
+    corruption recovery steps back over a header it could not use; near the
+    end of the file, in the definitions section, that step can land before
+    the header and the same bytes are scanned forever. The second identical
+    jump (or too many such jumps) ends it: pyulog is given end-of-file.
+    ``limit`` hides the bytes from that offset on."""
+
+    def _guard_init(self, size: int, limit: Optional[int]) -> None:
+        self.size = size
+        self.limit = limit
+        self.cut: Optional[Tuple[int, int, int]] = None  # (offset, wanted, got) of the first short read
+        self.stopped_at: Optional[int] = None
+        self.gave_up_at: Optional[int] = None
+        self._last_back = -1
+        self._regressions = 0
+        self._loops: set = set()
+
+    def read(self, n=-1):  # pyulog always asks for a size
+        if self.gave_up_at is not None:
+            return b""
+        if self.limit is not None:
+            pos = self.tell()
+            if n is None or n < 0 or pos + n > self.limit:
+                n = max(0, self.limit - pos)
+        b = super().read(n)
+        if n is not None and 0 <= len(b) < n and self.cut is None and not (n == 3 and not b) and n != 512:
+            # 3: a header at the very end is a clean end; 512: pyulog's sync search chunk
+            self.cut = (self.tell() - len(b), n, len(b))
+        return b
+
+    def seek(self, offset, whence=0):
+        here = self.tell()
+        if self.gave_up_at is not None:
+            return here
+        dest = offset if whence == 0 else here + offset if whence == 1 else self.size + offset
+        if dest < 0:
+            raise ValueError("seek before the start of the file")  # pyulog treats it as corruption
+        if dest < here:
+            if dest <= self._last_back:  # back behind an earlier step back: a loop, or a one-off
+                self._regressions += 1
+                if (here, dest) in self._loops or self._regressions > _BACK_SEEK_REGRESSIONS:
+                    self.gave_up_at = here  # the same jump twice: pyulog would repeat it forever
+                    return here
+                self._loops.add((here, dest))
+            self._last_back = dest
+        return super().seek(dest, 0)
+
+    def close(self):
+        if not self.closed and self.stopped_at is None:
+            self.stopped_at = self.tell()
+        super().close()
+
+
+class _GuardedFile(_Guard, io.BufferedReader):
+    def __init__(self, path: str, size: int, limit: Optional[int] = None):
+        io.BufferedReader.__init__(self, io.FileIO(path, "rb"), 1 << 16)
+        self._guard_init(size, limit)
+
+
+# --------------------------------------------------------------------- parsing
+
+def _probe(path: str) -> int:
+    """The file's size; :class:`InputError` unless it starts like a ULog."""
+    try:
+        if os.path.isdir(path):
+            raise InputError(f"{path}: is a directory, not a ULog")
+        with open(path, "rb") as fh:
+            head = fh.read(HEADER_LEN)
+        size = os.path.getsize(path)
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if not head:
+        raise InputError(f"{path}: empty file, not a ULog")
+    if not head.startswith(ULOG_MAGIC):
+        raise InputError(f"{path}: not a PX4 ULog (no 'ULog' header)")
+    if len(head) < HEADER_LEN:
+        raise InputError(f"{path}: ULog cut inside its {HEADER_LEN}-byte header")
+    return size
+
+
+class _Parsed:
+    def __init__(self, ulog, fh: _Guard, printed: List[str]):
+        self.ulog = ulog
+        self.fh = fh
+        self.printed = printed
+
+
+def _parse(fh: _GuardedFile) -> _Parsed:
+    """pyulog over ``fh``; on an exception ``fh.stopped_at`` says where it was."""
+    import pyulog.core as core
+
+    _install_print_capture(core)
+    printed: List[str] = []
+    _capture.lines = printed
+    try:
+        ulog = core.ULog(fh, message_name_filter_list=list(TOPICS), disable_str_exceptions=True)
+    finally:
+        _capture.lines = None
+        if not fh.closed:
+            fh.stopped_at = fh.tell()
+            fh.close()
+    return _Parsed(ulog, fh, printed)
+
+
+def _open(path: str, size: int, limit: Optional[int] = None) -> _GuardedFile:
+    try:
+        return _GuardedFile(path, size, limit)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+
+
+def _load(path: str, size: int) -> Tuple[_Parsed, List[str]]:
+    """pyulog's view of ``path``, and a damage line if pyulog raised mid-file
+    (then the file is read again up to just before where it failed)."""
+    from pyulog.exceptions import ULogIncompatibleFlagException
+
+    fh = _open(path, size)
+    try:
+        return _parse(fh), []
+    except ULogIncompatibleFlagException:
+        raise InputError(f"{path}: ULog with unknown incompatible flags (a newer format, or a corrupt header)") from None
+    except Exception as exc:  # pyulog gave up mid-file: read up to there
+        at = fh.stopped_at
+        why = f"{type(exc).__name__}: {exc}"[:200]
+    if not at or at <= HEADER_LEN + 1:
+        raise InputError(f"{path}: unreadable ULog ({why})")
+    try:
+        parsed = _parse(_open(path, size, limit=at - 1))
+    except Exception as exc:
+        raise InputError(f"{path}: unreadable ULog ({type(exc).__name__}: {exc})"[:300]) from None
+    return parsed, [f"pyulog failed at byte {at} of {size} ({why}); read up to there, the rest is lost"]
+
+
+def _file_damage(p: _Parsed, size: int) -> List[str]:
+    u, fh = p.ulog, p.fh
+    out: List[str] = []
+    end = size if fh.limit is None else min(size, fh.limit)
+    if fh.cut is not None and end == size:
+        off, want, got = fh.cut
+        out.append(f"file cut short: it ends inside a message at byte {size} "
+                   f"({got} of {want} bytes from byte {off}); the last message is lost")
+    if fh.gave_up_at is not None:
+        out.append(f"pyulog went round in circles on corrupt bytes near byte {fh.gave_up_at} of {size}; "
+                   "stopped there, the rest is lost")
+    elif fh.cut is None and fh.stopped_at is not None and fh.stopped_at < end:
+        out.append(f"pyulog stopped at byte {fh.stopped_at} of {size} (a malformed message); "
+                   "the rest is lost")
+    if not getattr(u, "message_formats", None):
+        out.append("no message formats: the file ends inside its header or definitions")
+    corrupt, other = [], []
+    for line in p.printed:
+        for pre in ("Warning: ", "Error: "):
+            if line.startswith(pre):
+                line = line[len(pre):]
+        line = line.replace(". Continuing, but file is most likely corrupt", "").rstrip(".! ")
+        which = corrupt if ("corrupt" in line.lower() or "subscription" in line) else other
+        if line and line not in which:
+            which.append(line)
+    if getattr(u, "file_corruption", False) or corrupt:
+        said = [c for c in corrupt if not c.lower().startswith("file corruption detected")]
+        text = "; ".join(said[:3]) + (f"; {len(said) - 3} more" if len(said) > 3 else "")
+        out.append("corrupt data skipped by pyulog" + (f" ({text})" if text else ""))
+    out.extend(f"pyulog: {line}"[:300] for line in other[:3])
+    if getattr(u, "has_data_appended", False):
+        offs = [o for o in getattr(u, "_appended_offsets", []) or [] if o > size]
+        if offs:
+            out.append(f"appended-data offset {offs[0]} lies past the end of the file ({size} bytes)")
+    drops = list(getattr(u, "dropouts", []) or [])
+    if drops:
+        ms = [int(d.duration) for d in drops]
+        out.append(f"logger dropouts: {len(ms)}, {sum(ms)} ms of data not logged (longest {max(ms)} ms)")
+    return out
+
+
+# --------------------------------------------------------------------- columns
+
+def _key(name: str, multi_id: int) -> str:
+    return name if multi_id == 0 else f"{name}[{multi_id}]"
+
+
+def _rows(d: Data) -> int:
+    return len(next(iter(d.values()))) if d else 0
+
+
+def _times(d: Data) -> np.ndarray:
+    """Sample time per row (int64 us): ``timestamp_sample`` where nonzero, else ``timestamp``."""
+    t = d["timestamp"].astype(np.int64)
+    ts = d.get("timestamp_sample")
+    if ts is not None:
+        ts = ts.astype(np.int64)
+        t = np.where(ts > 0, ts, t)
+    return t
+
+
+def _f(d: Data, key: str) -> np.ndarray:
+    return d[key].astype(np.float64) if key in d else np.full(_rows(d), np.nan)
+
+
+def _clean(what: str, t: np.ndarray, cols: List[np.ndarray], damage: List[str],
+           good: Optional[np.ndarray] = None) -> Tuple[np.ndarray, List[np.ndarray]]:
+    """Sort by time, keep the first of equal times, drop rows without a time or
+    with non-finite values (``good`` False: invalid too); one damage line."""
+    no_time = t <= 0
+    ok = ~no_time
+    bad = np.zeros(t.size, dtype=bool) if good is None else ~good
+    for c in cols:
+        if c.dtype.kind == "f":
+            fin = np.isfinite(c) if c.ndim == 1 else np.isfinite(c).all(axis=1)
+            bad |= ~fin
+    bad &= ok
+    ok &= ~bad
+    tk = t[ok]
+    backwards = int(np.count_nonzero(np.diff(tk) < 0)) if tk.size > 1 else 0
+    order = np.argsort(tk, kind="stable")
+    ts = tk[order]
+    keep = np.ones(ts.size, dtype=bool)
+    keep[1:] = ts[1:] != ts[:-1]
+    dups = int(ts.size - np.count_nonzero(keep))
+    parts = []
+    if backwards:
+        parts.append(f"time went backwards {backwards} time(s), records re-ordered")
+    n_nt, n_bad = int(no_time.sum()), int(bad.sum())
+    dropped = n_nt + n_bad + dups
+    if dropped:
+        why = [f"{n} {w}" for n, w in ((n_bad, "non-finite or invalid"), (dups, "repeating a time"),
+                                       (n_nt, "without a time")) if n]
+        parts.append(f"{dropped} record(s) dropped ({', '.join(why)})")
+    if parts:
+        damage.append(f"{what}: " + "; ".join(parts))
+    return ts[keep], [c[ok][order][keep] for c in cols]
+
+
+class _Topics:
+    """pyulog's datasets by topic name and multi_id."""
+
+    def __init__(self, ulog):
+        self.by: Dict[str, Dict[int, Data]] = {}
+        for ds in getattr(ulog, "data_list", []):
+            self.by.setdefault(ds.name, {})[int(ds.multi_id)] = ds.data
+
+    def get(self, name: str, multi_id: int = 0) -> Optional[Data]:
+        d = self.by.get(name, {}).get(multi_id)
+        return d if d and _rows(d) else None
+
+    def all(self, name: str) -> Dict[int, Data]:
+        return {i: d for i, d in sorted(self.by.get(name, {}).items()) if _rows(d)}
+
+    def messages(self) -> Dict[str, int]:
+        return {_key(n, i): _rows(d) for n, inst in sorted(self.by.items()) for i, d in sorted(inst.items())}
+
+
+def _imu(tp: _Topics, damage: List[str]) -> Optional[ImuSeries]:
+    d = tp.get("sensor_combined")
+    if d is None or "accelerometer_m_s2[0]" not in d:
+        return None
+    t = d["timestamp"].astype(np.int64)
+    rel = d.get("accelerometer_timestamp_relative")
+    if rel is not None:
+        rel = rel.astype(np.int64)
+        t = np.where(rel != RELATIVE_TIMESTAMP_INVALID, t + rel, t)
+    t, (fx, fy, fz) = _clean("sensor_combined", t, [_f(d, f"accelerometer_m_s2[{i}]") for i in range(3)], damage)
+    return ImuSeries("sensor_combined", t, fx, fy, fz)
+
+
+def _attitude(tp: _Topics, damage: List[str]) -> Optional[AttitudeSeries]:
+    d = tp.get("vehicle_attitude")
+    if d is None or "q[0]" not in d:
+        return None
+    q = np.column_stack([_f(d, f"q[{i}]") for i in range(4)])
+    norm = np.sqrt((q * q).sum(axis=1))
+    good = np.abs(norm - 1.0) <= QUAT_NORM_TOL
+    t, (q, norm) = _clean("vehicle_attitude", _times(d), [q, norm], damage, good)
+    return AttitudeSeries("vehicle_attitude", t, q / norm[:, None])
+
+
+def _baro(tp: _Topics, damage: List[str]) -> Optional[BaroSeries]:
+    baros = {i: d for i, d in tp.all("sensor_baro").items() if "pressure" in d}
+    instances = max(1, len(tp.all("sensor_baro")))
+    air = tp.get("vehicle_air_data")
+    if air is not None and "baro_pressure_pa" in air:
+        instance = 0
+        ids = air.get("baro_device_id")
+        if ids is not None and ids.size:
+            ids = ids[ids != 0]
+            if ids.size:
+                dev = Counter(ids.tolist()).most_common(1)[0][0]
+                for i, d in baros.items():
+                    if "device_id" in d and np.any(d["device_id"] == dev):
+                        instance = i
+                        break
+        t, (p,) = _clean("vehicle_air_data", _times(air), [_f(air, "baro_pressure_pa")], damage)
+        return BaroSeries("vehicle_air_data", t, p, instance=instance, instances=instances)
+    if not baros:
+        return None
+    i = min(baros)
+    d = baros[i]
+    name = _key("sensor_baro", i)
+    p = _f(d, "pressure")
+    fin = p[np.isfinite(p)]
+    if fin.size and np.median(fin) < HPA_BELOW:
+        p = p * 100.0  # hPa (millibar) in PX4 <= 1.11
+    t, (p,) = _clean(name, _times(d), [p], damage)
+    return BaroSeries(name, t, p, instance=i, instances=instances)
+
+
+def _gps_alt(d: Data) -> Optional[np.ndarray]:
+    if "altitude_msl_m" in d:
+        return d["altitude_msl_m"].astype(np.float64)
+    if "alt" in d:
+        a = d["alt"]
+        return a.astype(np.float64) * (1e-3 if a.dtype.kind in "iu" else 1.0)
+    return None
+
+
+def _gnss(tp: _Topics, damage: List[str]) -> Optional[GnssSeries]:
+    d = tp.get("vehicle_gps_position")
+    if d is not None and _gps_alt(d) is not None:
+        name = "vehicle_gps_position"
+    else:
+        inst = [(i, g) for i, g in tp.all("sensor_gps").items() if _gps_alt(g) is not None]
+        if not inst:
+            return None
+        i, d = max(inst, key=lambda x: (_rows(x[1]), -x[0]))
+        name = _key("sensor_gps", i)
+    n = _rows(d)
+    epv = _f(d, "epv")
+    sigma = np.where(np.isfinite(epv) & (epv > 0), epv, np.nan)
+    fix = d["fix_type"].astype(np.int64) if "fix_type" in d else np.zeros(n, dtype=np.int64)
+    sats = d["satellites_used"].astype(np.int64) if "satellites_used" in d else np.zeros(n, dtype=np.int64)
+    # sigma is NaN by design when not reported: only the altitude decides whether a row is finite
+    t, (alt, idx) = _clean(name, _times(d), [_gps_alt(d), np.arange(n)], damage)
+    return GnssSeries(name, t, alt, sigma[idx], fix[idx], sats[idx])
+
+
+def _range(tp: _Topics, damage: List[str]) -> Optional[RangeSeries]:
+    best = None
+    for i, d in tp.all("distance_sensor").items():
+        if "orientation" not in d or "current_distance" not in d:
+            continue
+        down = d["orientation"] == ROTATION_DOWNWARD_FACING
+        n = int(down.sum())
+        if n and (best is None or n > best[0]):
+            best = (n, i, d, down)
+    if best is None:
+        return None
+    _, i, d, down = best
+    name = _key("distance_sensor", i)
+    valid = d["signal_quality"] != 0 if "signal_quality" in d else np.ones(_rows(d), dtype=bool)
+    lo, hi, valid = _f(d, "min_distance")[down], _f(d, "max_distance")[down], valid[down]
+    t, (rng, idx) = _clean(name, _times(d)[down], [_f(d, "current_distance")[down], np.arange(lo.size)], damage)
+    return RangeSeries(name, t, rng, lo[idx], hi[idx], valid[idx])
+
+
+def _latest(t: np.ndarray, v: np.ndarray, ok: np.ndarray) -> Optional[float]:
+    ok = ok & np.isfinite(v) & (t > 0)
+    if not ok.any():
+        return None
+    j = np.flatnonzero(ok)
+    return float(v[j[np.argmax(t[j])]])
+
+
+def _autopilot(tp: _Topics, damage: List[str]) -> Tuple[Optional[AutopilotSeries], Optional[float]]:
+    d = tp.get("vehicle_local_position")
+    if d is None:
+        return None, None
+    origin = None
+    if "ref_alt" in d:
+        if "z_global" in d:
+            ref_ok = d["z_global"] != 0
+        elif "xy_global" in d:
+            ref_ok = d["xy_global"] != 0
+        elif "ref_timestamp" in d:
+            ref_ok = d["ref_timestamp"] > 0
+        else:
+            ref_ok = np.ones(_rows(d), dtype=bool)
+        origin = _latest(d["timestamp"].astype(np.int64), _f(d, "ref_alt"), ref_ok)
+    if "z" not in d:
+        return None, origin
+    sel = d["z_valid"] != 0 if "z_valid" in d else np.ones(_rows(d), dtype=bool)
+    t, (up,) = _clean("vehicle_local_position", _times(d)[sel], [-_f(d, "z")[sel]], damage)
+    return AutopilotSeries("vehicle_local_position", t, up, "ekf_origin"), origin
+
+
+def _home(tp: _Topics) -> Optional[float]:
+    d = tp.get("home_position")
+    if d is None or "alt" not in d:
+        return None
+    ok = d["valid_alt"] != 0 if "valid_alt" in d else np.ones(_rows(d), dtype=bool)
+    return _latest(d["timestamp"].astype(np.int64), _f(d, "alt"), ok)
+
+
+def _firmware(u) -> str:
+    info = getattr(u, "msg_info_dict", {}) or {}
+    sysname = info.get("sys_name") if isinstance(info.get("sys_name"), str) and info.get("sys_name") else "PX4"
+    rel = info.get("ver_sw_release")
+    if isinstance(rel, int) and rel > 0:
+        major, minor, patch, kind = (rel >> 24) & 0xFF, (rel >> 16) & 0xFF, (rel >> 8) & 0xFF, rel & 0xFF
+        suffix = ("" if kind == 255 else " (RC)" if kind >= 192 else " (beta)" if kind >= 128
+                  else " (alpha)" if kind >= 64 else " (dev)")
+        return f"{sysname} v{major}.{minor}.{patch}{suffix}"
+    sw = info.get("ver_sw")
+    if isinstance(sw, str) and sw.strip():
+        return f"{sysname} {sw.strip()[:12]}"
+    return ""
+
+
+def _vehicle(tp: _Topics, u) -> str:
+    d = tp.get("vehicle_status")
+    kind = ""
+    mav_type = (getattr(u, "initial_parameters", {}) or {}).get("MAV_TYPE")
+    from_param = _MAV_TYPE.get(int(mav_type), "") if isinstance(mav_type, (int, np.integer)) else ""
+    if d is not None:
+        if "is_vtol" in d and np.any(d["is_vtol"] != 0):
+            return "vtol"
+        if "vehicle_type" in d:
+            kind = _VEHICLE_TYPE.get(Counter(d["vehicle_type"].tolist()).most_common(1)[0][0], "")
+        elif "is_rotary_wing" in d and np.any(d["is_rotary_wing"] != 0):
+            kind = "copter"
+    if kind == "rover" and from_param == "boat":
+        return "boat"
+    return kind or from_param
+
+
+# --------------------------------------------------------------------- entry point
+
+def read_ulog(path) -> OnboardRecord:
+    """Decode one PX4 ULog. :class:`InputError` if it is not one at all (or
+    nothing can be read from it); damage to the file is listed in ``damage``."""
+    path = os.fspath(path)
+    size = _probe(path)
+    parsed, damage = _load(path, size)
+    failed = bool(damage)
+    u = parsed.ulog
+    damage += _file_damage(parsed, size)
+    tp = _Topics(u)
+    rec = OnboardRecord(path=path, format="ulog", bytes_read=size, messages=tp.messages())
+    series: List[str] = []
+
+    def build(what: str, fn: Callable[[], object]):
+        try:
+            with np.errstate(all="ignore"):
+                return fn()
+        except Exception as exc:  # a corrupt format (missing or odd fields) must not sink the file
+            series.append(f"{what}: could not be decoded ({type(exc).__name__}: {exc})"[:300])
+            return None
+
+    rec.firmware = build("firmware", lambda: _firmware(u)) or ""
+    rec.vehicle = build("vehicle_status", lambda: _vehicle(tp, u)) or ""
+    rec.imu = build("sensor_combined", lambda: _imu(tp, series))
+    rec.attitude = build("vehicle_attitude", lambda: _attitude(tp, series))
+    rec.baro = build("baro", lambda: _baro(tp, series))
+    rec.gnss = build("gnss", lambda: _gnss(tp, series))
+    rec.rangefinder = build("distance_sensor", lambda: _range(tp, series))
+    ap = build("vehicle_local_position", lambda: _autopilot(tp, series))
+    if ap is not None:
+        rec.autopilot, rec.origin_alt_msl_m = ap
+    rec.home_alt_msl_m = build("home_position", lambda: _home(tp))
+    rec.damage = damage + series
+    if failed and len(rec.missing()) == 6:  # pyulog gave up and left nothing usable
+        raise InputError(f"{path}: unreadable ULog: {damage[0]}")
+    return rec
+
+
+__all__ = ["read_ulog", "TOPICS"]
