@@ -45,8 +45,14 @@ def open_log(path: PathLike, config: Optional[IngestConfig] = None, sysid: Optio
 
 def expand_log_paths(paths: Union[PathLike, Iterable[PathLike]]) -> List[Path]:
     """Files as given plus every ``*.tlog``, ``*.bin`` and ``*.ulg`` (any case)
-    under each directory (recursively, sorted within the directory), in the
-    order of the arguments; a file named twice is kept at its first place.
+    under each directory: see :func:`expand_paths`."""
+    return expand_paths(paths, LOG_SUFFIXES)
+
+
+def expand_paths(paths: Union[PathLike, Iterable[PathLike]], suffixes) -> List[Path]:
+    """Files as given plus every file with one of ``suffixes`` (any case) under
+    each directory (recursively, sorted within the directory), in the order of
+    the arguments; a file named twice is kept at its first place.
 
     Raises :class:`~mavnav.errors.InputError` for a path that does not exist.
     """
@@ -57,7 +63,7 @@ def expand_log_paths(paths: Union[PathLike, Iterable[PathLike]]) -> List[Path]:
     for p in paths:
         p = Path(p)
         if p.is_dir():
-            group = sorted(q for q in p.rglob("*") if q.is_file() and q.suffix.lower() in LOG_SUFFIXES)
+            group = sorted(q for q in p.rglob("*") if q.is_file() and q.suffix.lower() in suffixes)
         elif p.is_file():
             group = [p]
         else:

@@ -72,27 +72,7 @@ def fill_message_stats(stats: IngestStats, reader, sysid: Optional[int]) -> None
 
 
 def expand_tlog_paths(paths: Union[PathLike, Iterable[PathLike]]) -> List[Path]:
-    """Files as given plus every ``*.tlog`` under each directory (recursively,
-    sorted within the directory), in the order of the arguments; a file named
-    twice is kept at its first place.
+    """:func:`~.logs.expand_log_paths` restricted to ``*.tlog`` in directories."""
+    from .logs import expand_paths
 
-    Raises :class:`~mavnav.errors.InputError` for a path that does not exist.
-    """
-    if isinstance(paths, (str, Path)):
-        paths = [paths]
-    out: List[Path] = []
-    seen = set()
-    for p in paths:
-        p = Path(p)
-        if p.is_dir():
-            group = sorted(q for q in p.rglob("*") if q.is_file() and q.suffix.lower() == ".tlog")
-        elif p.is_file():
-            group = [p]
-        else:
-            raise InputError(f"{p}: no such file or directory")
-        for q in group:
-            key = q.resolve()
-            if key not in seen:
-                seen.add(key)
-                out.append(q)
-    return out
+    return expand_paths(paths, (".tlog",))
