@@ -35,6 +35,23 @@ _MIN_RECORD = 8 + wire.HEADER_LEN_V1 + 2
 Item = Union[tuple, Rejected]
 
 
+def _good_record_after(buf, pos: int, n: int, last_ts, stop: int = -1) -> bool:
+    """Whether a complete, plausible record with a good CRC starts after ``buf[pos]``
+    (its frame's start byte before ``stop``, default: anywhere in the buffer).
+    Then a record at ``pos`` that would overlap it was garbage (a noise start
+    byte with a large length, a record cut short), not one to skip whole: a
+    record without a checkable CRC (unknown id) is skipped whole only if no
+    good record begins before its end, timestamp included."""
+    q = wire.next_start(buf, pos + 9, n if stop < 0 else min(stop, n))
+    while q >= 0:
+        if wire.parse_frame(buf, q, n)[0] == wire.OK:
+            ts = int.from_bytes(buf[q - 8 : q], "big")
+            if abs(ts - last_ts) <= _TS_JUMP_US if last_ts is not None else _TS_MIN_US <= ts <= _TS_MAX_US:
+                return True
+        q = wire.next_start(buf, q + 1, n if stop < 0 else min(stop, n))
+    return False
+
+
 class TlogReader:
     """Iterate over the frames of one tlog. ``counts[(sysid, msgid)]`` and the
     byte counters are filled while iterating."""
@@ -111,7 +128,9 @@ class TlogReader:
                         st = NEED_MORE
                     else:
                         st, flen, msgid, sysid, compid, ps = parse(buf, p, n)
-                    if st == OK or (st == UNKNOWN_ID and in_step):
+                    if st == OK or (
+                        st == UNKNOWN_ID and in_step and not _good_record_after(buf, pos, n, last_ts, p + flen + 8)
+                    ):
                         ts = int.from_bytes(buf[pos:p], "big")
                         plausible = (
                             abs(ts - last_ts) <= _TS_JUMP_US
@@ -136,8 +155,8 @@ class TlogReader:
                                 self.unknown_frames += 1
                                 yield Rejected(ts / 1e6, "unknown_message", f"msgid {msgid}")
                             continue
-                    if st == NEED_MORE and eof:
-                        # a record cut short by the end of the file
+                    if st == NEED_MORE and eof and not _good_record_after(buf, pos, n, last_ts):
+                        # a record cut short by the end of the file (no good record follows it)
                         if bad_from < 0:
                             bad_from = base + pos
                         self.truncated_bytes += base + n - bad_from
@@ -145,7 +164,7 @@ class TlogReader:
                         yield Rejected(last_ts / 1e6 if last_ts else 0.0, "truncated", f"{n - pos} bytes at end of file")
                         pos = n
                         break
-                    if st == NEED_MORE:
+                    if st == NEED_MORE and not eof:
                         break  # refill
                     if st == wire.BAD_CRC and in_step:
                         self.crc_errors += 1
