@@ -25,6 +25,7 @@ from ..ingest import expand_log_paths
 from ..sim.faults import parse_faults
 from ..sinks.csv_sink import CsvSink
 from . import main
+from .honest import check_outputs, honest_audit_result
 from .run import common_options
 from .viewer_options import make_viewer_sinks, viewer_options
 
@@ -100,6 +101,8 @@ def audit_cmd(paths, json_path, fail_on, workers, scheduler, fleet_report, cache
     """
     cfg = load_config(config_path)
     faults = parse_faults(inject)  # a bad spec fails here, before any work
+    check_outputs({"--csv": csv_path, "--rrd": viewer_kw.get("rrd"), "--json": json_path},
+                  {"--fleet-report": fleet_report})
     # results come back in the order of the arguments (a directory's logs
     # sorted in its place); a missing path is reported in its place
     slots: list = []
@@ -145,6 +148,8 @@ def audit_cmd(paths, json_path, fail_on, workers, scheduler, fleet_report, cache
                 file_results.append(audit_one(f, cfg, sysid=sysid, extra_sinks=extra, faults=faults))
     it = iter(file_results)
     results: list[dict] = [x if isinstance(x, dict) else next(it) for x in slots]
+    # --sysid with no data from that vehicle is an error; a tlog cut short says where
+    results = [honest_audit_result(r, sysid) for r in results]
     for r in results:
         click.echo(format_table(r))
     if json_path:

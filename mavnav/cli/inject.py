@@ -11,6 +11,7 @@ from ..sim.faults import parse_fault, sidecar_path, write_sidecar
 from ..sim.inject import inject_file
 from ..sim.scenario import FAULT_MAGNITUDE, FAULT_SOURCE
 from . import main
+from .honest import check_outputs
 
 
 def _kinds_help() -> str:
@@ -62,6 +63,7 @@ def inject_cmd(in_path: str, faults: Tuple[str, ...], out_path: str, sysid: Opti
     parsed = [parse_fault(spec) for spec in faults]
     if str(in_path) == str(out_path):
         raise InputError("the output must not overwrite the input")
+    check_outputs({"-o": out_path, "the fault sidecar": sidecar_path(out_path)})
     report = inject_file(in_path, out_path, parsed, sysid)
     side = sidecar_path(out_path)
     write_sidecar(side, report)

@@ -24,6 +24,7 @@ from ..sinks.base import Sink
 from ..sinks.csv_sink import CsvSink
 from . import main
 from .emit_options import emit_options, make_emit_sinks, split_emit_options
+from .honest import check_outputs, has_vehicle_data, no_vehicle_error
 from .viewer_options import make_viewer_sinks, viewer_options
 
 
@@ -130,6 +131,7 @@ def run_cmd(connection: str, config_path, sysid, csv_path, inject, **kw) -> None
     viewer_kw, rest = _split_viewer(rest)
     cfg = load_config(config_path)
     faults = parse_faults(inject)
+    check_outputs({"--csv": csv_path, "--rrd": viewer_kw.get("rrd")})
     live = source = LiveSource(connection, cfg.ingest, sysid=sysid)
     if faults:
         source = FaultedSource(live, faults)
@@ -168,6 +170,7 @@ def replay_cmd(tlog: str, speed: str, config_path, sysid, csv_path, inject, **kw
     pace = parse_speed(speed)
     cfg = load_config(config_path)
     faults = parse_faults(inject)
+    check_outputs({"--csv": csv_path, "--rrd": viewer_kw.get("rrd")})
     source = open_log(tlog, cfg.ingest, sysid=sysid)
     if faults:
         source = FaultedSource(source, faults)
@@ -178,6 +181,8 @@ def replay_cmd(tlog: str, speed: str, config_path, sysid, csv_path, inject, **kw
     except KeyboardInterrupt:
         click.echo("mavnav replay: interrupted", err=True)
         sys.exit(130)
+    if sysid is not None and not has_vehicle_data(source.stats.to_dict()):
+        raise MavnavError(f"{tlog}: " + no_vehicle_error(tlog, sysid, source.stats.format))
     print_summary(summary, "mavnav replay")
 
 

@@ -7,9 +7,9 @@ from typing import Optional
 
 import click
 
-from ..errors import InputError
 from ..sim import load_scenario, sidecar_path, simulate
 from . import main
+from .honest import check_outputs
 
 
 @main.command("simulate")
@@ -25,10 +25,9 @@ def simulate_cmd(scenario_path: str, out_path: str, truth_path: Optional[str], s
     MAVLink stream. Writes OUT.tlog, OUT.faults.json (fault windows) and, with
     --truth, a truth CSV at the scenario's truth_rate_hz. Same seed, same bytes."""
     scn = load_scenario(scenario_path)
-    res = simulate(scn, seed)
     out = Path(out_path)
-    if not out.parent.exists():
-        raise InputError(f"{out.parent}: no such directory")
+    check_outputs({"-o": out, "the fault sidecar": sidecar_path(out), "--truth": truth_path})
+    res = simulate(scn, seed)
     res.write(out, truth_path)
     t = res.timings_s
     click.echo(

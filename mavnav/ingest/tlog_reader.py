@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from collections import Counter
 from pathlib import Path
-from typing import Iterator, Union
+from typing import Iterator, Optional, Union
 
 from ..errors import InputError
 from ..samples import Rejected
@@ -67,6 +67,7 @@ class TlogReader:
         self.crc_errors = 0
         self.unknown_frames = 0
         self.truncated_bytes = 0
+        self.truncated_at: Optional[int] = None  # byte offset of a record the end of the file cuts short
 
     def probe(self) -> None:
         """Raise :class:`InputError` unless the file starts like a tlog."""
@@ -159,6 +160,7 @@ class TlogReader:
                         # a record cut short by the end of the file (no good record follows it)
                         if bad_from < 0:
                             bad_from = base + pos
+                        self.truncated_at = base + pos
                         self.truncated_bytes += base + n - bad_from
                         bad_from = -1
                         yield Rejected(last_ts / 1e6 if last_ts else 0.0, "truncated", f"{n - pos} bytes at end of file")
