@@ -16,7 +16,8 @@ from mavnav.samples import ReferenceSet
 from mavnav.sim import load_scenario, simulate
 from mavnav.sinks.base import Sink
 from mavnav.sinks.mavlink_statustext import SEVERITY_FOR_STATE, StatusTextLimiter, format_text
-from test_emit_sink import Peer, udp_sink
+from pymavlink.dialects.v20 import common as mavlink2
+from test_emit_sink import Peer, texts_of, udp_sink
 
 F32 = np.float32
 SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"
@@ -50,6 +51,30 @@ def gnss_step_tlog(tmp_path_factory):
     return path, res.faults[0]
 
 
+def expected_texts(order, interval_us=0):
+    """(text, severity, event) the sink must send for the pipeline's items in order: an
+    unavailable source that no epoch of its boot has yet shown in use is starting up
+    (INFO, worded STARTING); texts are compared with the chunk padding collapsed."""
+    used = set()
+    lim = StatusTextLimiter(interval_us)
+    out = []
+
+    def send(items):
+        for ev, n in items:
+            starting = ev.state == "unavailable" and (ev.boot, ev.source) not in used
+            sev = mavlink2.MAV_SEVERITY_INFO if starting else SEVERITY_FOR_STATE[ev.state]
+            out.append((" ".join(format_text(ev, n, starting).split()), sev, ev))
+
+    for item in order:
+        if isinstance(item, AlarmEvent):
+            send(lim.offer(item))
+        else:
+            used.update((item.boot, k) for k, st in item.sources.items() if st.state != "unavailable")
+            send(lim.due(item.boot, item.t_us))
+    send(lim.flush())
+    return out
+
+
 def _replay(path, peer, **cfg):
     rec = Recorder()
     sink = udp_sink(peer, **cfg)
@@ -78,7 +103,7 @@ def test_replayed_fault_scenario_reaches_the_peer(gnss_step_run):
     n_text = len(rec.events)
     first, last = rec.reports[0].t_us, rec.reports[-1].t_us
     sent = sink.counts["ALTITUDE"]
-    assert peer.wait_for(lambda: len(peer.of("STATUSTEXT")) == n_text and len(peer.of("ALTITUDE")) == sent)
+    assert peer.wait_for(lambda: len(texts_of(peer.msgs, strict=False)) == n_text and len(peer.of("ALTITUDE")) == sent)
     seq = [m for m in peer.msgs if m.get_type() in ("ALTITUDE", "STATUSTEXT")]
     alts = peer.of("ALTITUDE")
     # ALTITUDE: 5 Hz of vehicle time, each equal to the report of its epoch
@@ -95,10 +120,12 @@ def test_replayed_fault_scenario_reaches_the_peer(gnss_step_run):
         else:
             assert math.isnan(a.bottom_clearance)
     # STATUSTEXT: one per transition, in order, right where the alarm happened in the stream
-    texts = peer.of("STATUSTEXT")
+    texts = texts_of(peer.msgs)
+    want = expected_texts(rec.order)
+    assert [(t.text, t.severity) for t in texts] == [(w[0], w[1]) for w in want]
+    assert any(w[1] == mavlink2.MAV_SEVERITY_INFO for w in want)  # start-up: sources wait for data
     for ev, st in zip(rec.events, texts):
-        assert st.text == format_text(ev) and st.severity == SEVERITY_FOR_STATE[ev.state]
-        i = seq.index(st)
+        i = seq.index(st.first)
         before = [m.time_usec for m in seq[:i] if m.get_type() == "ALTITUDE"]
         after = [m.time_usec for m in seq[i:] if m.get_type() == "ALTITUDE"]
         assert (not before or before[-1] < ev.t_us) and (not after or ev.t_us <= after[0] < ev.t_us + 200_000 + 50_000)
@@ -116,17 +143,10 @@ def test_rate_limited_statustexts_keep_every_sources_latest_state(gnss_step_run)
     rec, sinks, peers, summary, _ = gnss_step_run
     peer = peers["limited"]
     # what the limiter must send, from the run's own events and epochs in the pipeline's order
-    lim = StatusTextLimiter(30_000_000)
-    expected = []
-    for item in rec.order:
-        if isinstance(item, AlarmEvent):
-            expected += lim.offer(item)
-        else:
-            expected += lim.due(item.boot, item.t_us)
-    expected += lim.flush()
-    assert peer.wait_for(lambda: len(peer.of("STATUSTEXT")) >= len(expected))
-    texts = [m.text for m in peer.of("STATUSTEXT")]
-    assert texts == [format_text(e, n) for e, n in expected]
+    expected = expected_texts(rec.order, 30_000_000)
+    assert peer.wait_for(lambda: len(texts_of(peer.msgs, strict=False)) >= len(expected))
+    texts = [t.text for t in texts_of(peer.msgs)]
+    assert texts == [e[0] for e in expected]
     assert len(texts) < len(rec.events)  # something was coalesced
     # the last STATUSTEXT of each source names the state it ended in
     final = {}
@@ -134,7 +154,8 @@ def test_rate_limited_statustexts_keep_every_sources_latest_state(gnss_step_run)
         final[ev.source] = ev.state
     for src, state in final.items():
         mine = [t for t in texts if t.startswith(f"mavnav {src} ")]
-        assert mine[-1].startswith(f"mavnav {src} {state.upper()}")
+        assert mine[-1].startswith(f"mavnav {src} {state.upper()}") or (
+            state == "unavailable" and mine[-1].startswith(f"mavnav {src} STARTING"))
 
 
 SITL_LOGS = Path(__file__).resolve().parents[1] / "sitl_logs"
@@ -163,16 +184,20 @@ def test_statustext_at_every_transition_of_the_sitl_logs(name):
         rec, sink, summary = _replay(path, peer, altitude_rate_hz=5.0, statustext_interval_s=0.0)
         assert rec.events, "the scenario raised no alarm transition"
         sent = sink.counts["ALTITUDE"]
-        assert peer.wait_for(lambda: len(peer.of("STATUSTEXT")) == len(rec.events)
+        assert peer.wait_for(lambda: len(texts_of(peer.msgs, strict=False)) == len(rec.events)
                              and len(peer.of("ALTITUDE")) == sent)
-        texts = peer.of("STATUSTEXT")
-        assert [t.text for t in texts] == [format_text(e) for e in rec.events]
-        assert [t.severity for t in texts] == [SEVERITY_FOR_STATE[e.state] for e in rec.events]
+        texts = texts_of(peer.msgs)
+        want = expected_texts(rec.order)
+        assert [(t.text, t.severity) for t in texts] == [(w[0], w[1]) for w in want]
+        # never cut: every chunk but the last fills the field; words are whole
+        for t in texts:
+            assert t.id != 0 or len(t.parts) == 1
+            assert all(len(p) == 50 for _, p in sorted(t.parts)[:-1])
         seq = [m for m in peer.msgs if m.get_type() in ("ALTITUDE", "STATUSTEXT")]
         where = _wire_positions(rec, seq)
         pos = {id(item): k for k, item in enumerate(rec.order)}
         for ev, st in zip(rec.events, texts):
-            i = seq.index(st)
+            i = seq.index(st.first)
             before = [w for w in where[:i] if w is not None]
             after = [w for w in where[i:] if w is not None]
             assert not before or before[-1] < pos[id(ev)]

@@ -138,6 +138,46 @@ def report(t_us: int, h: float = 12.5, sigma: float = 0.4, *, boot: int = 0, ove
                        baro_height_ref_m=baro_h, range_height_agl_m=rng_agl)
 
 
+class Text:
+    """One STATUSTEXT as a ground station shows it: MAVLink 2 chunks joined."""
+
+    def __init__(self, first):
+        self.first, self.severity, self.id = first, first.severity, first.id
+        self.parts = [(first.chunk_seq, first.text)]
+
+    @property
+    def text(self) -> str:
+        """The chunks joined, the spaces that pad a chunk to the field collapsed."""
+        return " ".join("".join(t for _, t in sorted(self.parts)).split())
+
+
+def texts_of(msgs, strict: bool = True) -> List[Text]:
+    """STATUSTEXT messages reassembled: ``id`` 0 is a whole text; chunks of one nonzero
+    ``id`` are joined in ``chunk_seq`` order (the last is shorter than 50 characters).
+    Not ``strict`` (while messages are still arriving): only the complete texts."""
+    out: List[Text] = []
+    open_: dict = {}
+    for m in msgs:
+        if m.get_type() != "STATUSTEXT":
+            continue
+        if m.id == 0:
+            out.append(Text(m))
+            continue
+        t = open_.get(m.id)
+        if t is None:
+            t = open_[m.id] = Text(m)
+            out.append(t)
+        else:
+            assert m.severity == t.severity
+            t.parts.append((m.chunk_seq, m.text))
+        if len(m.text) < 50:
+            del open_[m.id]
+    if not strict:
+        return [t for t in out if t not in open_.values()]
+    assert not open_, "a chunked STATUSTEXT without its last chunk"
+    return out
+
+
 def event(t_s: float, source="gnss", state="alarm", previous="nominal", reason="innovation 6.1 sigma", boot=0):
     return AlarmEvent(t_us=int(round(t_s * 1e6)), boot=boot, source=source, state=state, previous=previous,
                       reason=reason)
@@ -275,13 +315,54 @@ def test_altitude_amsl_is_nan_without_a_known_reference_and_after_a_reboot(peer)
 def test_statustext_severity_names_the_source(peer, state, previous, severity):
     sink = udp_sink(peer)
     sink.start({})
-    sink.alarm(event(3.0, source="rangefinder", state=state, previous=previous,
-                     reason="range disagrees with GNSS and baro by 4.2 m over 1.0 s"))
+    feed(sink, [report(2_900_000)])  # the rangefinder has been in use: no longer starting
+    reason = "range disagrees with GNSS and baro by 4.2 m over 1.0 s"
+    sink.alarm(event(3.0, source="rangefinder", state=state, previous=previous, reason=reason))
+    assert peer.wait_for(lambda: len(peer.of("STATUSTEXT")) == 2)
+    msgs = peer.of("STATUSTEXT")
+    assert all(m.severity == severity and m.get_srcComponent() == 191 for m in msgs)
+    # too long for one message: MAVLink 2 chunks, cut between words, never mid-word
+    assert msgs[0].id == msgs[1].id != 0 and [m.chunk_seq for m in msgs] == [0, 1]
+    whole = f"mavnav rangefinder {state.upper()}: {reason}"
+    # every chunk but the last fills the field (a NUL would end the text there), padded between words
+    assert len(msgs[0].text) == 50 and len(msgs[1].text) < 50
+    assert whole.split() == msgs[0].text.split() + msgs[1].text.split()
+    assert [t.text for t in texts_of(peer.msgs)] == [whole]
+
+
+def test_statustext_that_fits_is_one_message_with_id_zero(peer):
+    sink = udp_sink(peer)
+    sink.start({})
+    sink.alarm(event(3.0, "gnss", "alarm", "caution", reason="step 9 m"))
     assert peer.wait_for(lambda: len(peer.of("STATUSTEXT")) == 1)
-    st = peer.of("STATUSTEXT")[0]
-    assert st.severity == severity and st.get_srcComponent() == 191
-    assert st.text.startswith(f"mavnav rangefinder {state.upper()}: range disagrees")
-    assert len(st.text) == 50  # cut to the field
+    m = peer.of("STATUSTEXT")[0]
+    assert (m.text, m.id, m.chunk_seq) == ("mavnav gnss ALARM: step 9 m", 0, 0)
+
+
+def test_unavailable_at_start_up_is_info_not_error(peer):
+    """At start-up sources wait for their first data: that is not an error. Once a
+    source has been in use, losing it is; alarms stay CRITICAL from the start."""
+    sink = udp_sink(peer, statustext_interval_s=0.0)
+    sink.start({})
+    # first epoch: no rangefinder data yet
+    sink.alarm(event(0.05, "rangefinder", "unavailable", "nominal", reason="no recent data"))
+    feed(sink, [report(50_000, rng="unavailable")])
+    feed(sink, [report(100_000, rng="unavailable")])
+    sink.alarm(event(0.15, "gnss", "alarm", "nominal", reason="step 9 m"))
+    sink.alarm(event(3.0, "rangefinder", "nominal", "unavailable", reason="consistent"))
+    feed(sink, [report(3_000_000)])
+    sink.alarm(event(9.0, "rangefinder", "unavailable", "nominal", reason="no recent data"))
+    # a reboot: the new boot starts up again
+    sink.alarm(event(0.05, "rangefinder", "unavailable", "nominal", reason="no recent data", boot=1))
+    assert peer.wait_for(lambda: len(peer.of("STATUSTEXT")) == 5)
+    got = [(t.text, t.severity) for t in texts_of(peer.msgs)]
+    assert got == [
+        ("mavnav rangefinder STARTING: no recent data", mavlink2.MAV_SEVERITY_INFO),
+        ("mavnav gnss ALARM: step 9 m", mavlink2.MAV_SEVERITY_CRITICAL),
+        ("mavnav rangefinder NOMINAL: consistent", mavlink2.MAV_SEVERITY_NOTICE),
+        ("mavnav rangefinder UNAVAILABLE: no recent data", mavlink2.MAV_SEVERITY_ERROR),
+        ("mavnav rangefinder STARTING: no recent data", mavlink2.MAV_SEVERITY_INFO),
+    ]
 
 
 def test_statustext_rate_limit_coalesces_and_keeps_the_latest_state(peer):

@@ -24,7 +24,9 @@ sends the same frames as the live run did):
   tilt-corrected rangefinder height, both only while the rangefinder is usable
   (``report.ok("rangefinder")``), NaN otherwise (as PX4 fills unknown fields;
   the message's own sentinels are < -1000 and < 0).
-* STATUSTEXT at every alarm transition (:mod:`.mavlink_statustext`).
+* STATUSTEXT at every alarm transition (:mod:`.mavlink_statustext`): never
+  cut, MAVLink 2 chunks (``id``, ``chunk_seq``) for a text over 50
+  characters; a source still starting up is INFO, not ERROR.
 * With ``debug_values``: NAMED_VALUE_FLOAT at the ALTITUDE rate
   (:data:`DEBUG_NAMES`).
 * With ``fusable``: ODOMETRY (331) at the ALTITUDE rate, for an autopilot
@@ -72,7 +74,7 @@ from ..samples import LinkLost, Reboot, ReferenceSet
 from .base import Sink
 from .mavlink_commands import DEFAULT_RATES, IntervalRequester, RateRequest, parse_rate
 from .mavlink_link import LinkWriter
-from .mavlink_statustext import StatusTextLimiter, format_text, severity
+from .mavlink_statustext import StartupWatch, StatusTextLimiter, format_text, severity, split_text
 
 log = logging.getLogger("mavnav.sinks.mavlink_out")
 
@@ -198,6 +200,8 @@ class MavlinkOutSink(Sink):
             sg.timestamp = int(max(wall_clock() - 1420070400, 0) * 100_000)
         self.writer: Optional[LinkWriter] = None
         self.limiter = StatusTextLimiter(int(round(cfg.statustext_interval_s * 1e6)))
+        self.startup = StartupWatch()
+        self._text_id = 0  # id of the last chunked STATUSTEXT (1..65535; 0 = a single message)
         self._hb = _Ticker(HEARTBEAT_PERIOD_US)
         self._alt = _Ticker(int(round(1e6 / cfg.altitude_rate_hz)))
         self.requester: Optional[IntervalRequester] = None
@@ -255,6 +259,7 @@ class MavlinkOutSink(Sink):
 
     def epoch(self, report: EpochReport) -> None:
         boot, t_us = report.boot, report.t_us
+        self.startup.epoch(report)
         if boot != self._boot:
             if self._boot is not None:
                 self._reset_counter += 1
@@ -350,8 +355,15 @@ class MavlinkOutSink(Sink):
 
     def _send_texts(self, items) -> None:
         for event, swallowed in items:
-            text = format_text(event, swallowed)
-            self._send(mavlink2.MAVLink_statustext_message(severity(event), text.encode("ascii")))
+            starting = self.startup.starting(event)
+            sev = severity(event, starting)
+            chunks = split_text(format_text(event, swallowed, starting))
+            if len(chunks) == 1:
+                self._send(mavlink2.MAVLink_statustext_message(sev, chunks[0].encode("ascii"), 0, 0))
+                continue
+            self._text_id = self._text_id % 0xFFFF + 1
+            for seq, chunk in enumerate(chunks):
+                self._send(mavlink2.MAVLink_statustext_message(sev, chunk.encode("ascii"), self._text_id, seq))
 
     def _heartbeat(self, status: int):
         return mavlink2.MAVLink_heartbeat_message(

@@ -1,17 +1,27 @@
-"""STATUSTEXT for alarm transitions: wording, severity and a coalescing rate limit.
+"""STATUSTEXT for alarm transitions: wording, severity, chunking and a coalescing rate limit.
 
-One STATUSTEXT per change of a source's state, at most 50 characters (the
-field's size; no terminator is needed at full length), ASCII, naming the
-source: ``mavnav gnss ALARM: <reason>``. Severity follows the new state:
+One message per change of a source's state, ASCII, naming the source:
+``mavnav gnss ALARM: <reason>``. A text longer than the field's 50
+characters is never cut: it goes out as MAVLink 2 chunks (the same nonzero
+``id``, ``chunk_seq`` 0, 1, ...), split between words and padded with spaces
+to the full 50 characters, so each chunk is readable on its own and only the
+last one, shorter, carries the NUL that marks the end (the protocol's rule);
+a text that fits is one message with ``id`` 0. Severity follows the new state:
 
-=============  =======================
-new state      MAV_SEVERITY
-=============  =======================
-alarm          CRITICAL (2)
-unavailable    ERROR (3)
-caution        WARNING (4)
-nominal        NOTICE (5)  (cleared)
-=============  =======================
+=====================================  =======================
+new state                              MAV_SEVERITY
+=====================================  =======================
+alarm                                  CRITICAL (2)
+unavailable (after having been in use)  ERROR (3)
+caution                                WARNING (4)
+nominal                                NOTICE (5)  (cleared)
+unavailable at start-up                INFO (6), worded STARTING
+=====================================  =======================
+
+Start-up is not an error: a source that has not yet been in use in this boot
+(no epoch has shown it nominal, caution or alarm) and is unavailable is
+*starting* (:class:`StartupWatch`), e.g. ``mavnav rangefinder STARTING: no
+recent data`` at INFO; once it has been in use, losing it is an ERROR.
 
 The rate limit is per source, on vehicle time: a source's first change is
 sent at once; further changes of the same source within
@@ -26,14 +36,15 @@ delay one another.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, List, Optional, Set, Tuple
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from ..report import AlarmEvent
+from ..report import AlarmEvent, EpochReport
 
 MAX_CHARS = 50
 PREFIX = "mavnav"
+STARTING = "STARTING"
 
 SEVERITY_FOR_STATE = {
     "alarm": mavlink2.MAV_SEVERITY_CRITICAL,
@@ -41,10 +52,13 @@ SEVERITY_FOR_STATE = {
     "caution": mavlink2.MAV_SEVERITY_WARNING,
     "nominal": mavlink2.MAV_SEVERITY_NOTICE,
 }
+SEVERITY_STARTING = mavlink2.MAV_SEVERITY_INFO
 
 
-def severity(event: AlarmEvent) -> int:
-    """MAV_SEVERITY for a transition, from its new state."""
+def severity(event: AlarmEvent, starting: bool = False) -> int:
+    """MAV_SEVERITY for a transition, from its new state (INFO for a source still starting)."""
+    if starting and event.state == "unavailable":
+        return SEVERITY_STARTING
     return SEVERITY_FOR_STATE[event.state]
 
 
@@ -52,14 +66,51 @@ def _ascii(text: str) -> str:
     return text.encode("ascii", "replace").decode("ascii").replace("\n", " ").replace("\r", " ")
 
 
-def format_text(event: AlarmEvent, coalesced: int = 0) -> str:
-    """``mavnav SOURCE STATE[ (+N)]: reason``, cut to 50 ASCII characters."""
-    head = f"{PREFIX} {event.source} {event.state.upper()}"
+def format_text(event: AlarmEvent, coalesced: int = 0, starting: bool = False) -> str:
+    """``mavnav SOURCE STATE[ (+N)]: reason``, whole (see :func:`split_text` for the wire)."""
+    word = STARTING if starting and event.state == "unavailable" else event.state.upper()
+    head = f"{PREFIX} {event.source} {word}"
     if coalesced:
         head += f" (+{coalesced})"
     reason = _ascii(event.reason.strip())
     text = f"{head}: {reason}" if reason else head
-    return _ascii(text)[:MAX_CHARS]
+    return " ".join(_ascii(text).split())
+
+
+def split_text(text: str, size: int = MAX_CHARS) -> List[str]:
+    """``text`` as STATUSTEXT chunks: cut between words (inside a word only if one
+    word is longer than a chunk), every chunk but the last padded with spaces to
+    exactly ``size`` characters and the last shorter than ``size``. A receiver
+    takes the NUL that ends a shorter field for the last chunk (the protocol's
+    rule), so only the last may be short; joined, the chunks give ``text`` back
+    up to the padding spaces, and each one read alone is whole words."""
+    if len(text) <= size:
+        return [text]
+    chunks: List[str] = []
+    rest = text
+    while len(rest) >= size:
+        cut = rest.rfind(" ", 0, size)
+        chunk = rest[: cut + 1] if cut > 0 else rest[:size]
+        chunks.append(chunk.ljust(size))
+        rest = rest[len(chunk):]
+    chunks.append(rest)
+    return chunks
+
+
+class StartupWatch:
+    """Which sources have been in use (nominal, caution or alarm in an epoch) in each boot."""
+
+    def __init__(self) -> None:
+        self._used: Set[Tuple[int, str]] = set()
+
+    def epoch(self, report: EpochReport) -> None:
+        for name, st in report.sources.items():
+            if st.state != "unavailable":
+                self._used.add((report.boot, name))
+
+    def starting(self, event: AlarmEvent) -> bool:
+        """Whether ``event`` is a source still starting up (unavailable, never yet in use)."""
+        return event.state == "unavailable" and (event.boot, event.source) not in self._used
 
 
 @dataclass
