@@ -176,10 +176,31 @@ def replay_cmd(tlog: str, speed: str, config_path, sysid, csv_path, inject, **kw
         source = FaultedSource(source, faults)
     # a paced replay is watched as it goes: the viewer logs as for a live run
     sinks = build_sinks(cfg, csv_path, pace is not None, viewer_kw, emit_kw)
+    # SIGINT and SIGTERM alike: stop between samples, close the sinks (the CSV
+    # complete), print the summary, exit 130 as for Ctrl-C
+    stop: dict = {}
+
+    def on_signal(signum, frame):
+        stop["signal"] = signal.Signals(signum).name
+
+    old = {}
     try:
-        summary = run_pipeline(paced(source, pace), cfg, sinks, info={"source": tlog, "live": False})
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            old[sig] = signal.signal(sig, on_signal)
+    except ValueError:  # not the main thread: Ctrl-C stays a KeyboardInterrupt
+        pass
+    try:
+        summary = run_pipeline(paced(source, pace), cfg, sinks, info={"source": tlog, "live": False},
+                               should_stop=lambda: bool(stop))
     except KeyboardInterrupt:
         click.echo("mavnav replay: interrupted", err=True)
+        sys.exit(130)
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+    if stop:
+        print_summary(summary, "mavnav replay")
+        click.echo(f"mavnav replay: interrupted by {stop['signal']}", err=True)
         sys.exit(130)
     if sysid is not None and not has_vehicle_data(source.stats.to_dict()):
         raise MavnavError(f"{tlog}: " + no_vehicle_error(tlog, sysid, source.stats.format))

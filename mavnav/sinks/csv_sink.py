@@ -6,6 +6,11 @@
 ``baro_ok`` (1/0: the source is nominal or in caution), ``alarm`` (the
 overall state as a word). Heights in metres above the reference; NaN as
 ``nan``. Times print with microsecond resolution, heights with 0.1 mm.
+
+Rows reach the file as the run goes, not only at close: on a live link
+(``info["live"]``) after every epoch, so a reader of the file is never behind
+what the console shows; otherwise at least every ``flush_s`` (1 s) of receive
+time (the samples' ``recv_s``), and whenever the link is lost.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ from pathlib import Path
 from typing import Optional
 
 from ..report import EpochReport, RunSummary
+from ..samples import LinkLost
 from .base import Sink
 
 COLUMNS = (
@@ -54,18 +60,42 @@ def csv_row(r: EpochReport) -> list[str]:
 class CsvSink(Sink):
     name = "csv"
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, flush_s: float = 1.0):
         self.path = Path(path)
+        self.flush_s = flush_s
         self._fh: Optional[object] = None
         self._w = None
+        self._live = False
+        self._pending = 0  # rows written since the last flush
+        self._recv_s: Optional[float] = None  # latest receive time seen
+        self._flushed_recv_s: Optional[float] = None
 
     def start(self, info: dict) -> None:
+        self._live = bool(info.get("live"))
         self._fh = open(self.path, "w", newline="", encoding="utf-8")
         self._w = csv.writer(self._fh)
         self._w.writerow(COLUMNS)
+        self._fh.flush()
+
+    def sample(self, s) -> None:
+        recv = getattr(s, "recv_s", None)
+        if recv is not None:
+            self._recv_s = recv
+            if self._flushed_recv_s is None:
+                self._flushed_recv_s = recv
+        if self._pending and type(s) is LinkLost:
+            self._flush()
 
     def epoch(self, report: EpochReport) -> None:
         self._w.writerow(csv_row(report))
+        self._pending += 1
+        if self._live or (self._recv_s is not None and abs(self._recv_s - self._flushed_recv_s) >= self.flush_s):
+            self._flush()
+
+    def _flush(self) -> None:
+        self._fh.flush()
+        self._pending = 0
+        self._flushed_recv_s = self._recv_s
 
     def close(self, summary: RunSummary) -> None:
         if self._fh is not None:
