@@ -130,3 +130,19 @@ def test_truncated_tlog_is_audited_with_a_note_saying_where(tmp_path, two_system
     assert want in res.output
     full = _invoke(["audit", two_systems, "--json", js])
     assert not any("mid-record" in n for n in json.loads(js.read_text())["files"][0]["notes"])
+
+
+def test_help_and_readme_say_what_each_state_means_and_what_to_do():
+    res = CliRunner().invoke(main, ["--help"])
+    assert res.exit_code == 0
+    lines = res.output.splitlines()
+    for state, action in [("nominal", "Nothing to do"), ("caution", "watch the named source"),
+                          ("unavailable", "Do not rely on the"), ("alarm", "stop height-critical")]:
+        i = next(k for k, ln in enumerate(lines) if ln.strip().startswith(state + " "))
+        block = " ".join(ln.strip() for ln in lines[i:i + 5])
+        assert action in block, (state, block)
+    readme = (REPO / "README.md").read_text()
+    section = readme.split("### What the states mean, and what to do")[1].split("\n### ")[0]
+    rows = [ln for ln in section.splitlines() if ln.startswith("| `")]
+    assert [r.split("`")[1] for r in rows] == ["nominal", "caution", "unavailable", "alarm"]
+    assert all(len(r.split("|")) == 5 and len(r.split("|")[3].strip()) > 5 for r in rows)  # each says what to do

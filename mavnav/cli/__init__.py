@@ -26,7 +26,23 @@ class _Group(click.Group):
 @click.group(cls=_Group)
 @click.version_option(package_name="mavnav")
 def main() -> None:
-    """mavnav: three-channel height estimation with integrity control over MAVLink."""
+    """mavnav: three-channel height estimation with integrity control over MAVLink.
+
+    \b
+    States (per source and overall: console, CSV 'alarm' column, viewer, STATUSTEXT):
+      nominal      sensors agree, the height is protected (within the alert limit).
+                   Nothing to do.
+      caution      a source looks suspicious, not confirmed; the height is still
+                   protected. Carry on, watch the named source, be ready.
+      unavailable  too little left to protect the height (normal at start-up);
+                   for one source: no usable data from it. Do not rely on the
+                   height near the ground: keep a margin, use another reference;
+                   if it lasts, check the sensors and the link.
+      alarm        a source is confirmed faulty and excluded (named, with why);
+                   'input': telemetry lost or too slow. Treat the autopilot's
+                   altitude as suspect if it uses that source: stop height-critical
+                   work, hold or climb to a safe height, cross-check, land with care.
+    """
 
 
 # Each command module registers itself on import.
