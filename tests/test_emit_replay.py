@@ -12,7 +12,7 @@ from mavnav.config import Config
 from mavnav.ingest import TlogSource
 from mavnav.pipeline import run
 from mavnav.report import AlarmEvent
-from mavnav.samples import ReferenceSet
+from mavnav.samples import LinkLost, LinkRecovered, ReferenceSet
 from mavnav.sim import load_scenario, simulate
 from mavnav.sinks.base import Sink
 from mavnav.sinks.mavlink_statustext import SEVERITY_FOR_STATE, StatusTextLimiter, format_text
@@ -32,6 +32,8 @@ class Recorder(Sink):
     def sample(self, s):
         if isinstance(s, ReferenceSet):
             self.references.append(s)
+        elif isinstance(s, (LinkLost, LinkRecovered)):
+            self.order.append(s)
 
     def epoch(self, report):
         self.reports.append(report)
@@ -68,6 +70,11 @@ def expected_texts(order, interval_us=0):
     for item in order:
         if isinstance(item, AlarmEvent):
             send(lim.offer(item))
+        elif isinstance(item, LinkLost):  # said at once, pending texts first
+            send(lim.flush())
+            out.append((f"mavnav input LINK LOST: no data for {item.silent_s:.1f} s", mavlink2.MAV_SEVERITY_ERROR, item))
+        elif isinstance(item, LinkRecovered):
+            out.append((f"mavnav input LINK RECOVERED after {item.outage_s:.1f} s", mavlink2.MAV_SEVERITY_NOTICE, item))
         else:
             used.update((item.boot, k) for k, st in item.sources.items() if st.state != "unavailable")
             send(lim.due(item.boot, item.t_us))
@@ -184,10 +191,10 @@ def test_statustext_at_every_transition_of_the_sitl_logs(name):
         rec, sink, summary = _replay(path, peer, altitude_rate_hz=5.0, statustext_interval_s=0.0)
         assert rec.events, "the scenario raised no alarm transition"
         sent = sink.counts["ALTITUDE"]
-        assert peer.wait_for(lambda: len(texts_of(peer.msgs, strict=False)) == len(rec.events)
+        want = expected_texts(rec.order)  # every transition, and a recorded link loss as it happened
+        assert peer.wait_for(lambda: len(texts_of(peer.msgs, strict=False)) == len(want)
                              and len(peer.of("ALTITUDE")) == sent)
         texts = texts_of(peer.msgs)
-        want = expected_texts(rec.order)
         assert [(t.text, t.severity) for t in texts] == [(w[0], w[1]) for w in want]
         # never cut: every chunk but the last fills the field; words are whole
         for t in texts:
@@ -196,7 +203,7 @@ def test_statustext_at_every_transition_of_the_sitl_logs(name):
         seq = [m for m in peer.msgs if m.get_type() in ("ALTITUDE", "STATUSTEXT")]
         where = _wire_positions(rec, seq)
         pos = {id(item): k for k, item in enumerate(rec.order)}
-        for ev, st in zip(rec.events, texts):
+        for (_, _, ev), st in zip(want, texts):
             i = seq.index(st.first)
             before = [w for w in where[:i] if w is not None]
             after = [w for w in where[i:] if w is not None]

@@ -398,8 +398,12 @@ def test_pending_statustext_goes_out_on_link_loss(peer):
     sink.alarm(event(1.5, "input", "alarm", "caution", reason="link lost"))
     assert peer.wait_for(lambda: len(peer.of("STATUSTEXT")) == 1)
     sink.sample(LinkLost(recv_s=100.0, silent_s=3.0))
-    assert peer.wait_for(lambda: len(peer.of("STATUSTEXT")) == 2)
+    assert peer.wait_for(lambda: len(peer.of("STATUSTEXT")) == 3)
     assert peer.of("STATUSTEXT")[1].text == "mavnav input ALARM: link lost"
+    # then the loss itself, at once (the receive clock's timeout, not the next epoch)
+    lost = texts_of(peer.msgs)[2]
+    assert lost.text == "mavnav input LINK LOST: no data for 3.0 s"
+    assert lost.severity == mavlink2.MAV_SEVERITY_ERROR
 
 
 # --------------------------------------------------------------------------- optional messages

@@ -20,6 +20,7 @@ from ..pipeline import run as run_pipeline
 from ..sim.effects import FaultedSource
 from ..sim.faults import parse_faults
 from ..report import AlarmEvent, RunSummary
+from ..samples import LinkLost, LinkRecovered
 from ..sinks.base import Sink
 from ..sinks.csv_sink import CsvSink
 from . import main
@@ -51,6 +52,15 @@ class AlarmPrinter(Sink):
     def alarm(self, ev: AlarmEvent) -> None:
         click.echo(f"[t={ev.t_s:9.3f} s boot {ev.boot}] {ev.source:<11} {ev.previous} -> {ev.state}: {ev.reason}",
                    err=True)
+
+    def sample(self, s) -> None:
+        # a live link's loss and recovery, as they happen (receive clock, not vehicle time)
+        if type(s) is LinkLost:
+            click.echo(f"[recv {time.strftime('%H:%M:%S', time.localtime(s.recv_s))}] input       "
+                       f"LINK LOST: no data from the vehicle for {s.silent_s:.1f} s", err=True)
+        elif type(s) is LinkRecovered:
+            click.echo(f"[recv {time.strftime('%H:%M:%S', time.localtime(s.recv_s))}] input       "
+                       f"link recovered after {s.outage_s:.1f} s", err=True)
 
 
 def print_summary(summary: RunSummary, title: str) -> None:

@@ -26,7 +26,9 @@ sends the same frames as the live run did):
   the message's own sentinels are < -1000 and < 0).
 * STATUSTEXT at every alarm transition (:mod:`.mavlink_statustext`): never
   cut, MAVLink 2 chunks (``id``, ``chunk_seq``) for a text over 50
-  characters; a source still starting up is INFO, not ERROR.
+  characters; a source still starting up is INFO, not ERROR. A live link's
+  loss and recovery are said as they happen (receive clock): ``mavnav input
+  LINK LOST: ...`` (ERROR) and ``... LINK RECOVERED after N s`` (NOTICE).
 * With ``debug_values``: NAMED_VALUE_FLOAT at the ALTITUDE rate
   (:data:`DEBUG_NAMES`).
 * With ``fusable``: ODOMETRY (331) at the ALTITUDE rate, for an autopilot
@@ -70,7 +72,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from ..errors import ConfigError, InputError
 from ..report import CHANNEL_NAMES, PAIR_NAMES, AlarmEvent, EpochReport, RunSummary
-from ..samples import LinkLost, Reboot, ReferenceSet
+from ..samples import LinkLost, LinkRecovered, Reboot, ReferenceSet
 from .base import Sink
 from .mavlink_commands import DEFAULT_RATES, IntervalRequester, RateRequest, parse_rate
 from .mavlink_link import LinkWriter
@@ -250,7 +252,13 @@ class MavlinkOutSink(Sink):
         elif ts is Reboot:
             self._alt_ref_msl.clear()
         elif ts is LinkLost:
+            # said at once, from the receive clock: the monitor's own input
+            # transition waits for the next epoch, i.e. for the link to return
             self._send_texts(self.limiter.flush())
+            self._send_statustext(mavlink2.MAV_SEVERITY_ERROR,
+                                  f"mavnav input LINK LOST: no data for {s.silent_s:.1f} s")
+        elif ts is LinkRecovered:
+            self._send_statustext(mavlink2.MAV_SEVERITY_NOTICE, f"mavnav input LINK RECOVERED after {s.outage_s:.1f} s")
         if self.requester is not None:
             self._service_commands()
 
@@ -356,14 +364,16 @@ class MavlinkOutSink(Sink):
     def _send_texts(self, items) -> None:
         for event, swallowed in items:
             starting = self.startup.starting(event)
-            sev = severity(event, starting)
-            chunks = split_text(format_text(event, swallowed, starting))
-            if len(chunks) == 1:
-                self._send(mavlink2.MAVLink_statustext_message(sev, chunks[0].encode("ascii"), 0, 0))
-                continue
-            self._text_id = self._text_id % 0xFFFF + 1
-            for seq, chunk in enumerate(chunks):
-                self._send(mavlink2.MAVLink_statustext_message(sev, chunk.encode("ascii"), self._text_id, seq))
+            self._send_statustext(severity(event, starting), format_text(event, swallowed, starting))
+
+    def _send_statustext(self, sev: int, text: str) -> None:
+        chunks = split_text(text)
+        if len(chunks) == 1:
+            self._send(mavlink2.MAVLink_statustext_message(sev, chunks[0].encode("ascii"), 0, 0))
+            return
+        self._text_id = self._text_id % 0xFFFF + 1
+        for seq, chunk in enumerate(chunks):
+            self._send(mavlink2.MAVLink_statustext_message(sev, chunk.encode("ascii"), self._text_id, seq))
 
     def _heartbeat(self, status: int):
         return mavlink2.MAVLink_heartbeat_message(
