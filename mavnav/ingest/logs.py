@@ -15,6 +15,7 @@ from typing import Iterable, List, Optional, Union
 
 from ..config import IngestConfig
 from ..errors import InputError
+from .onboard.head import read_head
 from .onboard.source import OnboardSource, detect_onboard
 from .tlog import TlogSource
 
@@ -24,16 +25,7 @@ LOG_SUFFIXES = (".tlog", ".bin", ".ulg")
 
 def log_format(path: PathLike) -> str:
     """'dataflash', 'ulog' or 'tlog' (the last is checked when the source opens)."""
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(16)
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise InputError(f"{path}: is a directory") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
-    return detect_onboard(head) or "tlog"
+    return detect_onboard(read_head(path, 16)) or "tlog"
 
 
 def open_log(path: PathLike, config: Optional[IngestConfig] = None, sysid: Optional[int] = None):

@@ -43,6 +43,7 @@ from typing import Dict, List, Optional
 import numpy as np
 
 from ...errors import InputError
+from .head import read_head
 from .record import (
     AttitudeSeries,
     AutopilotSeries,
@@ -199,14 +200,7 @@ def _quat_from_euler_deg(roll, pitch, yaw) -> np.ndarray:
 def read_dataflash(path) -> OnboardRecord:
     """Decode one DataFlash log. :class:`InputError` if it is not one at all."""
     path = str(path)
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(3)
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
-    if not is_dataflash(head):
+    if not is_dataflash(read_head(path, 3)):
         raise InputError(f"{path}: not an ArduPilot DataFlash log (no FMT record at the start)")
     log = _Log(path)
     try:

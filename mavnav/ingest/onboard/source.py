@@ -57,6 +57,7 @@ from ...samples import (
 )
 from ..stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
 from ..streams import KindGuard
+from .head import read_head
 from .record import OnboardRecord
 
 PathLike = Union[str, Path]
@@ -81,14 +82,7 @@ def detect_onboard(head: bytes) -> Optional[str]:
 
 def read_record(path: PathLike) -> OnboardRecord:
     """Decode an onboard log of either format (detected by content)."""
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(16)
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
-    kind = detect_onboard(head)
+    kind = detect_onboard(read_head(path, 16))
     if kind == "dataflash":
         from .dataflash import read_dataflash
 

@@ -59,6 +59,7 @@ from typing import Callable, Dict, List, Optional, Tuple
 import numpy as np
 
 from ...errors import InputError
+from .head import read_head
 from .record import (
     AttitudeSeries,
     AutopilotSeries,
@@ -183,16 +184,10 @@ class _GuardedFile(_Guard, io.BufferedReader):
 
 def _probe(path: str) -> int:
     """The file's size; :class:`InputError` unless it starts like a ULog."""
-    try:
-        if os.path.isdir(path):
-            raise InputError(f"{path}: is a directory, not a ULog")
-        with open(path, "rb") as fh:
-            head = fh.read(HEADER_LEN)
-        size = os.path.getsize(path)
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if os.path.isdir(path):
+        raise InputError(f"{path}: is a directory, not a ULog")
+    head = read_head(path, HEADER_LEN)
+    size = os.path.getsize(path)
     if not head:
         raise InputError(f"{path}: empty file, not a ULog")
     if not head.startswith(ULOG_MAGIC):
