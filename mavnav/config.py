@@ -43,7 +43,14 @@ class BaroConfig(_Section):
 
 
 class GnssConfig(_Section):
+    """GNSS vertical error: white noise (sigma_z_m, or the receiver's v_acc)
+    plus a first-order Gauss-Markov error (gm_sigma_m, gm_tau_s), the slow
+    wander of GNSS altitude (multipath, satellite geometry) seen on real
+    flights. gm_sigma_m 0 turns the Gauss-Markov state off (paper mode)."""
+
     sigma_z_m: float = Field(2.0, gt=0)  # vertical noise when v_acc is not used
+    gm_sigma_m: float = Field(3.0, ge=0)  # RMS of the Gauss-Markov error
+    gm_tau_s: float = Field(300.0, gt=0)  # its correlation time
     use_v_acc: bool = True  # take sigma from the receiver's v_acc when it reports one
     v_acc_floor_m: float = Field(0.3, ge=0)  # never trust a receiver more than this
 

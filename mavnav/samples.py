@@ -87,6 +87,7 @@ class AutopilotHeight:
     boot: int
     height_ref_m: float
     source: str  # "GLOBAL_POSITION_INT" or "LOCAL_POSITION_NED"
+    vel_up_mps: float = float("nan")  # its vertical velocity estimate, up (NaN: not reported)
 
 
 # --------------------------------------------------------------------------

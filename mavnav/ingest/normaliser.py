@@ -662,7 +662,9 @@ class Normaliser:
     def _global_position_int_at(self, f, t_us, recv_s) -> None:
         rel_m = f["relative_alt"] / 1000.0  # mm above home
         self._rel_alt = (t_us, self.clock.boot, rel_m)
-        item = (t_us, recv_s, self.clock.boot, f["alt"] / 1000.0, rel_m)  # alt: mm MSL
+        vz = f["vz"]
+        item = (t_us, recv_s, self.clock.boot, f["alt"] / 1000.0, rel_m,
+                -vz / 100.0 if _finite(vz) else math.nan)  # alt: mm MSL; vz: cm/s down
         for it in self.ap_sel.offer("GLOBAL_POSITION_INT", item):
             self._ap_selected(it)
 
@@ -675,7 +677,8 @@ class Normaliser:
 
     def _local_position_ned_at(self, f, t_us, recv_s) -> None:
         up_m = -f["z"]  # z is down, m, above the EKF origin
-        item = (t_us, recv_s, self.clock.boot, None, up_m)
+        vz = f["vz"]
+        item = (t_us, recv_s, self.clock.boot, None, up_m, -vz if _finite(vz) else math.nan)
         for it in self.ap_sel.offer("LOCAL_POSITION_NED", item):
             self._ap_selected(it)
 
@@ -708,7 +711,7 @@ class Normaliser:
             self.stats.autopilot_reference = self._ap_mode
         ref_msl = self.gnss_ref_msl_m()
         while held:
-            t_us, recv_s, boot, alt_msl, local_up = held.popleft()
+            t_us, recv_s, boot, alt_msl, local_up, vel_up = held.popleft()
             if self._ap_mode == "gnss_reference":
                 if src == "GLOBAL_POSITION_INT":
                     h = alt_msl - ref_msl
@@ -716,7 +719,7 @@ class Normaliser:
                     h = local_up + self._ekf_origin_msl_m - ref_msl
             else:
                 h = local_up
-            self._guarded("autopilot", t_us, recv_s, boot, AutopilotHeight(t_us, recv_s, boot, h, src))
+            self._guarded("autopilot", t_us, recv_s, boot, AutopilotHeight(t_us, recv_s, boot, h, src, vel_up))
 
     # ------------------------------------------------------------------ output
 

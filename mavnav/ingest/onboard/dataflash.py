@@ -418,15 +418,33 @@ def _autopilot(log: _Log) -> Optional[AutopilotSeries]:
         if tt is None:
             continue
         sel = _instance(t, "C", 0)
-        t_us, up = _sorted(tt[sel], -t["PD"].astype(float)[sel], what=name, damage=log.damage)
-        return AutopilotSeries(name, t_us, up, "ekf_origin")
+        vel = _optional_velocity(t, "VD", -1.0, sel)
+        t_us, up, vel = _sorted(tt[sel], -t["PD"].astype(float)[sel], vel, what=name, damage=log.damage)
+        return AutopilotSeries(name, t_us, up, "ekf_origin", _unmask(vel))
     t = log.table("CTUN")
     if t is not None and "Alt" in t:
         tt = log.time_us("CTUN", t)
         if tt is not None:
-            t_us, up = _sorted(tt, t["Alt"].astype(float), what="CTUN", damage=log.damage)
-            return AutopilotSeries("CTUN", t_us, up, "home")
+            sel = np.ones(tt.size, dtype=bool)
+            vel = _optional_velocity(t, "CRt", 0.01, sel) if "CRt" in t else _optional_velocity(t, "CRate", 0.01, sel)
+            t_us, up, vel = _sorted(tt, t["Alt"].astype(float), vel, what="CTUN", damage=log.damage)
+            return AutopilotSeries("CTUN", t_us, up, "home", _unmask(vel))
     return None
+
+
+_NO_VALUE = 1e300  # stands for "not logged" through _sorted, which drops non-finite rows
+
+
+def _optional_velocity(t: dict, field: str, scale: float, sel: np.ndarray) -> np.ndarray:
+    """``field * scale`` (up, m/s) where logged and finite, else a marker that _unmask turns to NaN."""
+    if field not in t:
+        return np.full(int(sel.sum()), _NO_VALUE)
+    v = t[field].astype(float)[sel] * scale
+    return np.where(np.isfinite(v), v, _NO_VALUE)
+
+
+def _unmask(v: np.ndarray) -> np.ndarray:
+    return np.where(v == _NO_VALUE, np.nan, v)
 
 
 def _datums(log: _Log, rec: OnboardRecord) -> None:

@@ -84,6 +84,7 @@ class AutopilotSeries:
     t_us: np.ndarray
     height_up_m: np.ndarray  # up, above ``datum``
     datum: str  # "ekf_origin" (EKF position, add origin_alt_msl_m for MSL) or "home"
+    vel_up_mps: Optional[np.ndarray] = None  # its vertical velocity, up (NaN where not logged)
 
 
 @dataclass

@@ -252,7 +252,8 @@ class _Builder:
         else:
             h = a.height_up_m
             self.stats.autopilot_reference = "ekf_origin" if a.datum == "ekf_origin" else "autopilot_home"
-        self.cols.append((a.t_us, _AP, h))
+        vel = a.vel_up_mps if a.vel_up_mps is not None else np.full(a.t_us.size, np.nan)
+        self.cols.append((a.t_us, _AP, h, vel))
 
     # ------------------------------------------------------------------ merge
 
@@ -305,7 +306,7 @@ class _Builder:
             elif tag == _RANGE:
                 kind, s = "range", RangeHeight(t, recv, 0, c[2][i], c[3][i], rng_name, c[4][i], c[5][i])
             elif tag == _AP:
-                kind, s = "autopilot", AutopilotHeight(t, recv, 0, c[2][i], ap_name)
+                kind, s = "autopilot", AutopilotHeight(t, recv, 0, c[2][i], ap_name, c[3][i])
             elif tag == _RANGE_REJ:
                 code, rng, lo, hi, cos_t = c[2][i], c[3][i], c[4][i], c[5][i], c[6][i]
                 st.events["Rejected"] += 1

@@ -496,8 +496,13 @@ def _autopilot(tp: _Topics, damage: List[str]) -> Tuple[Optional[AutopilotSeries
     if "z" not in d:
         return None, origin
     sel = d["z_valid"] != 0 if "z_valid" in d else np.ones(_rows(d), dtype=bool)
-    t, (up,) = _clean("vehicle_local_position", _times(d)[sel], [-_f(d, "z")[sel]], damage)
-    return AutopilotSeries("vehicle_local_position", t, up, "ekf_origin"), origin
+    vz = -_f(d, "vz")[sel] if "vz" in d else np.full(int(sel.sum()), np.nan)
+    if "v_z_valid" in d:
+        vz = np.where(d["v_z_valid"][sel] != 0, vz, np.nan)
+    # a missing velocity must not drop the height row: _clean drops non-finite rows
+    t, (up, vz) = _clean("vehicle_local_position", _times(d)[sel], [-_f(d, "z")[sel], np.nan_to_num(vz, nan=1e300)], damage)
+    vz = np.where(vz == 1e300, np.nan, vz)
+    return AutopilotSeries("vehicle_local_position", t, up, "ekf_origin", vz), origin
 
 
 def _home(tp: _Topics) -> Optional[float]:
