@@ -87,10 +87,33 @@ class FilterConfig(_Section):
     # Covariance analysis and simulation step.
     step_s: float = Field(0.02, gt=0)
     # Longest interval between two filter epochs before the epoch builder
-    # forces an epoch without a baro sample (and restarts the differencing).
+    # forces an epoch without a baro sample (and restarts the differencing):
+    # the larger of max_epoch_gap_s and epoch_gap_intervals baro intervals
+    # (a 2 Hz telemetry baro is slow, not in a gap).
     max_epoch_gap_s: float = Field(0.25, gt=0)
-    # A GNSS/rangefinder sample older than this at its epoch is dropped as late.
+    epoch_gap_intervals: float = Field(3.0, gt=1)
+    # A GNSS/rangefinder sample older than its latency limit at its epoch is
+    # dropped as late. The limit is the larger of max_meas_latency_s and
+    # meas_latency_intervals times (baro interval + the stream's own
+    # interval), never above max_meas_age_s.
     max_meas_latency_s: float = Field(0.25, gt=0)
+    meas_latency_intervals: float = Field(2.0, gt=0)
+    max_meas_age_s: float = Field(1.5, gt=0)
+    # An IMU sample is held (zero-order hold) at most this long, or
+    # imu_hold_intervals of the IMU's own interval if longer; beyond, the
+    # vertical acceleration is unknown (kinematic model: zero mean, RMS
+    # kinematic_accel_sigma_mps2 with correlation time kinematic_accel_tau_s).
+    imu_hold_max_s: float = Field(0.5, gt=0)
+    imu_hold_intervals: float = Field(3.0, gt=1)
+    kinematic_accel_sigma_mps2: float = Field(3.0, gt=0)
+    kinematic_accel_tau_s: float = Field(1.0, gt=0)
+    # The scatter of consecutive IMU samples (what a snapshot misses of the
+    # acceleration between samples) is averaged over this much vehicle time.
+    imu_scatter_window_s: float = Field(5.0, gt=0)
+    # A baro sample repeating the previous pressure exactly within this long is
+    # the same measurement sent again (telemetry faster than the sensor), not
+    # a new one.
+    baro_repeat_max_s: float = Field(1.0, ge=0)
     # Condition the prior on the first baro sample (exactly equivalent to the
     # state-augmented filter); otherwise the first sample only starts differencing.
     init_from_first_baro: bool = True
