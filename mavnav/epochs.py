@@ -8,20 +8,38 @@ sample holds until the next one), giving the control increments ``dp_m`` and
 ``dv_mps`` of ``f_up - g``; with one IMU sample per epoch these are exactly the
 paper's ``Psi W``.
 
-GNSS and rangefinder samples are used at the first epoch at or after their
-time, with their age (``AuxMeasurement.age_s``): at each epoch the newest
-pending sample not after it is used (older ones are counted as superseded)
-and samples newer than the epoch wait for the next one. They queue: a
-stream that runs slightly ahead of the baro clock at the same rate must not
-replace each sample before it can be used.
+Every stream is judged against its own cadence (the median of its recent
+intervals), so the same rules hold at 400 Hz onboard and at 2 Hz telemetry:
 
-Gaps: when no baro sample comes for ``max_epoch_gap_s`` of IMU time, an epoch
-is forced at the IMU time without a baro row and the differencing restarts at
-the next baro sample. A baro sample that waits for IMU data longer than
-``max_epoch_gap_s`` is processed with the last IMU value held (counted as
-``imu_stale_epochs``).
+* **IMU.** A sample holds for at most ``max(imu_hold_max_s, imu_hold_intervals
+  x its interval)``; beyond that the acceleration is unknown and the
+  kinematic model takes over (zero mean, variance from
+  ``kinematic_accel_sigma_mps2``). What a held snapshot misses of the
+  acceleration between samples is in ``dv_var_m2ps2``: the scatter of
+  consecutive samples (half the mean squared difference, averaged over
+  ``imu_scatter_window_s``) times the held duration times the hold length.
+  It vanishes at high rates and dominates at telemetry rates; the filters add
+  it to their process noise. Samples that arrive behind the epoch already
+  made (a lagging IMU) only take over the hold: no segment has a negative
+  duration.
+* **GNSS and rangefinder.** Every sample not after an epoch is used at that
+  epoch: all pending samples of a stream are averaged into one measurement
+  (mean height, mean age, white variance divided by their number), so a
+  20 Hz rangefinder under a 10 Hz baro loses nothing. A sample is late, and
+  dropped, only when older than ``max(max_meas_latency_s,
+  meas_latency_intervals x (baro interval + its own interval))`` (at most
+  ``max_meas_age_s``) at its epoch.
+* **Baro gaps.** When no baro sample comes for ``max(max_epoch_gap_s,
+  epoch_gap_intervals x the baro interval)`` of IMU time, an epoch is forced
+  at the IMU time without a baro row and the differencing restarts at the next
+  baro sample. A baro sample that waits for IMU data that long is processed
+  at once (the IMU then counts as held or unknown). A baro sample repeating
+  the previous pressure exactly within ``baro_repeat_max_s`` is the same
+  measurement sent again and makes no epoch (``baro_repeated``).
 
-Pure: no clock, no I/O. ``push(sample)`` returns the epochs it completed.
+Pure: no clock, no I/O. ``push(sample)`` returns the epochs it completed;
+``counters`` say what happened to every sample (``<kind>_used``,
+``_late``, ``_before_start``, ...).
 """
 
 from __future__ import annotations
@@ -47,14 +65,30 @@ class EpochStart:
 Epoch = Union[EpochStart, EpochInputs]
 
 
+class Cadence:
+    """The typical interval of one stream: the median of its last intervals."""
+
+    __slots__ = ("_last_t", "_dts", "interval_us")
+
+    def __init__(self, n: int = 9):
+        self._last_t: Optional[int] = None
+        self._dts: deque[int] = deque(maxlen=n)
+        self.interval_us: Optional[int] = None
+
+    def push(self, t_us: int) -> None:
+        if self._last_t is not None and t_us > self._last_t:
+            self._dts.append(t_us - self._last_t)
+            self.interval_us = sorted(self._dts)[len(self._dts) // 2]
+        self._last_t = t_us
+
+
 class EpochBuilder:
     """Samples in, epochs out. One instance per vehicle and boot."""
 
     def __init__(self, cfg: Config):
         f = cfg.filter
+        self._f = f
         self._g = f.gravity_mps2
-        self._max_gap_us = int(round(f.max_epoch_gap_s * 1e6))
-        self._max_latency_us = int(round(f.max_meas_latency_s * 1e6))
         self._gnss_cfg = cfg.sensors.gnss
         self._rng_sigma = cfg.sensors.rangefinder.sigma_m
         self._rng_scale = cfg.sensors.rangefinder.scale_sigma_frac
@@ -62,16 +96,40 @@ class EpochBuilder:
         self.reset()
 
     def reset(self) -> None:
-        self._imu: deque[tuple[int, float]] = deque()  # (t_us, f_up) not yet fully integrated
+        self._imu: deque[tuple[int, float]] = deque()  # (t_us, f_up); imu[0] holds at the last epoch
         self._last_imu_t: Optional[int] = None
         self._epoch_t: Optional[int] = None  # None until started
         self._pending_baro: deque[BaroHeight] = deque()
+        self._last_baro: Optional[BaroHeight] = None
         self._aux: dict[str, deque] = {"gnss": deque(), "rng": deque()}
         self._baro_restart = False
+        self._cadence = {k: Cadence() for k in ("imu", "baro", "gnss", "rng")}
+        self._scatter_var = math.nan  # of f_up between consecutive IMU samples, (m/s^2)^2
+        self._dv_var = 0.0  # accumulated over the epoch being built
 
     @property
     def started(self) -> bool:
         return self._epoch_t is not None
+
+    # ------------------------------------------------------------------ cadence-derived limits
+
+    def _interval_s(self, kind: str) -> float:
+        iv = self._cadence[kind].interval_us
+        return 0.0 if iv is None else iv * 1e-6
+
+    def _max_gap_us(self) -> int:
+        f = self._f
+        return int(1e6 * max(f.max_epoch_gap_s, f.epoch_gap_intervals * self._interval_s("baro")))
+
+    def _latency_us(self, which: str) -> int:
+        f = self._f
+        lim = max(f.max_meas_latency_s,
+                  f.meas_latency_intervals * (self._interval_s("baro") + self._interval_s(which)))
+        return int(1e6 * min(lim, f.max_meas_age_s))
+
+    def _hold_s(self) -> float:
+        f = self._f
+        return max(f.imu_hold_max_s, f.imu_hold_intervals * self._interval_s("imu"))
 
     # ------------------------------------------------------------------ push
 
@@ -95,6 +153,15 @@ class EpochBuilder:
         if self._last_imu_t is not None and t_us <= self._last_imu_t:
             self.counters["imu_not_increasing"] += 1
             return []
+        if self._imu:
+            prev_t, prev_f = self._imu[-1]
+            d2 = 0.5 * (f_up - prev_f) ** 2
+            if self._scatter_var != self._scatter_var:
+                self._scatter_var = d2
+            else:
+                a = min(1.0, (t_us - prev_t) * 1e-6 / self._f.imu_scatter_window_s)
+                self._scatter_var += a * (d2 - self._scatter_var)
+        self._cadence["imu"].push(t_us)
         self._imu.append((t_us, f_up))
         self._last_imu_t = t_us
         out: list[Epoch] = []
@@ -104,9 +171,14 @@ class EpochBuilder:
             return out
         while self._pending_baro and self._pending_baro[0].t_us <= t_us:
             out.append(self._epoch_at(self._pending_baro.popleft()))
-        if not self._pending_baro and t_us - self._epoch_t > self._max_gap_us:
+        if not self._pending_baro and t_us - self._epoch_t > self._max_gap_us():
             out.append(self._forced_epoch(t_us))
         return out
+
+    def _is_repeat(self, b: BaroHeight) -> bool:
+        last = self._last_baro
+        return (last is not None and b.pressure_pa == last.pressure_pa and b.height_ref_m == last.height_ref_m
+                and (b.t_us - last.t_us) * 1e-6 <= self._f.baro_repeat_max_s)
 
     def _on_baro(self, b: BaroHeight) -> list[Epoch]:
         if not self.started:
@@ -114,6 +186,8 @@ class EpochBuilder:
                 self.counters["baro_before_imu"] += 1
                 return []
             self._epoch_t = b.t_us
+            self._last_baro = b
+            self._cadence["baro"].push(b.t_us)
             self._baro_restart = False
             self.counters["starts"] += 1
             return [EpochStart(t_us=b.t_us, baro_m=b.height_ref_m)]
@@ -121,14 +195,19 @@ class EpochBuilder:
         if b.t_us <= last_t:
             self.counters["baro_late"] += 1
             return []
+        if self._is_repeat(b):
+            self.counters["baro_repeated"] += 1
+            return []
+        self._last_baro = b
+        self._cadence["baro"].push(b.t_us)
         self._pending_baro.append(b)
         out: list[Epoch] = []
-        # Ready when IMU data covers it; or held IMU when the IMU has gone quiet.
+        # Ready when IMU data covers it; or at once when the IMU has gone quiet.
         while self._pending_baro:
             head = self._pending_baro[0]
             if head.t_us <= self._last_imu_t:
                 out.append(self._epoch_at(self._pending_baro.popleft()))
-            elif b.t_us - self._last_imu_t > self._max_gap_us:
+            elif b.t_us - self._last_imu_t > self._max_gap_us():
                 self.counters["imu_stale_epochs"] += 1
                 out.append(self._epoch_at(self._pending_baro.popleft()))
             else:
@@ -136,10 +215,12 @@ class EpochBuilder:
         return out
 
     def _on_aux(self, s, which: str) -> None:
+        self.counters[f"{which}_in"] += 1
         if not self.started:
             self.counters[f"{which}_before_start"] += 1
             return
-        if s.t_us < self._epoch_t - self._max_latency_us:
+        self._cadence[which].push(s.t_us)
+        if s.t_us < self._epoch_t - self._latency_us(which):
             self.counters[f"{which}_late"] += 1
             return
         q = self._aux[which]
@@ -150,56 +231,79 @@ class EpochBuilder:
 
     # ------------------------------------------------------------------ epochs
 
-    def _integrate_to(self, t_end: int) -> tuple[float, float]:
-        """Zero-order-hold integral of f_up - g from the last epoch to ``t_end``."""
+    def _integrate_to(self, t_end: int) -> tuple[float, float, float]:
+        """Zero-order-hold integral of ``f_up - g`` from the last epoch to
+        ``t_end``: ``(dp, dv, dv_var)``. A sample holds for at most the hold
+        limit; beyond it the acceleration is unknown (zero mean)."""
         g = self._g
         t = self._epoch_t
-        dp = dv = 0.0
         imu = self._imu
-        # imu[0] holds at t (its time is <= t); later samples take over in turn.
-        while True:
-            f = imu[0][1]
+        hold_us = int(self._hold_s() * 1e6)
+        iv = self._interval_s("imu")
+        scatter = 0.0 if self._scatter_var != self._scatter_var else self._scatter_var
+        kin_var = self._f.kinematic_accel_sigma_mps2 ** 2
+        kin_tau = self._f.kinematic_accel_tau_s
+        # samples at or before t (lagging ones) only take over the hold
+        while len(imu) > 1 and imu[1][0] <= t:
+            imu.popleft()
+        dp = dv = var = 0.0
+        while t < t_end:
+            t_h, f = imu[0]
             nxt = imu[1][0] if len(imu) > 1 else None
             seg_end = t_end if nxt is None or nxt > t_end else nxt
-            tau = (seg_end - t) * 1e-6
-            a = f - g
-            dp += dv * tau + 0.5 * a * tau * tau
-            dv += a * tau
+            held_end = min(seg_end, max(t, t_h + hold_us))
+            for a, z, known in ((t, held_end, True), (held_end, seg_end, False)):
+                tau = (z - a) * 1e-6
+                if tau <= 0.0:
+                    continue
+                acc = f - g if known else 0.0
+                dp += dv * tau + 0.5 * acc * tau * tau
+                dv += acc * tau
+                if known:
+                    var += scatter * tau * min(max(iv, tau), hold_us * 1e-6)
+                else:
+                    var += kin_var * tau * kin_tau
+                    self.counters["imu_unknown_us"] += z - a
             t = seg_end
             if nxt is not None and nxt <= t_end:
                 imu.popleft()
-                if nxt == t_end:
-                    break
-            else:
-                break
-        return dp, dv
+        return dp, dv, var
 
     def _aux_for(self, which: str, t_us: int) -> Optional[AuxMeasurement]:
+        """Every pending sample of ``which`` not after ``t_us``, averaged into one measurement."""
         q = self._aux[which]
-        s = None
+        limit = self._latency_us(which)
+        n = 0
+        sum_h = sum_age = sum_var = 0.0
         while q and q[0].t_us <= t_us:
-            if s is not None:
-                self.counters[f"{which}_superseded"] += 1
             s = q.popleft()
-        if s is None:
-            return None
-        age_us = t_us - s.t_us
-        if age_us > self._max_latency_us:
-            self.counters[f"{which}_late"] += 1
-            return None
-        if which == "gnss":
-            c = self._gnss_cfg
-            if c.use_v_acc and s.sigma_m is not None:
-                sigma = max(s.sigma_m, c.v_acc_floor_m)
+            age_us = t_us - s.t_us
+            if age_us > limit:
+                self.counters[f"{which}_late"] += 1
+                continue
+            if which == "gnss":
+                c = self._gnss_cfg
+                if c.use_v_acc and s.sigma_m is not None:
+                    sigma = max(s.sigma_m, c.v_acc_floor_m)
+                else:
+                    sigma = c.sigma_z_m
+                h = s.height_ref_m
             else:
-                sigma = c.sigma_z_m
-            return AuxMeasurement(height_m=s.height_ref_m, sigma_m=sigma, age_s=age_us * 1e-6)
-        h = s.height_agl_m
-        sigma = math.hypot(self._rng_sigma, self._rng_scale * h) if self._rng_scale else self._rng_sigma
-        return AuxMeasurement(height_m=h, sigma_m=sigma, age_s=age_us * 1e-6)
+                h = s.height_agl_m
+                sigma = math.hypot(self._rng_sigma, self._rng_scale * h) if self._rng_scale else self._rng_sigma
+            n += 1
+            sum_h += h
+            sum_age += age_us * 1e-6
+            sum_var += sigma * sigma
+        if n == 0:
+            return None
+        self.counters[f"{which}_used"] += n
+        if n > 1:
+            self.counters[f"{which}_averaged"] += n
+        return AuxMeasurement(height_m=sum_h / n, sigma_m=math.sqrt(sum_var / (n * n)), age_s=sum_age / n)
 
     def _make(self, t_us: int, baro_m: Optional[float]) -> EpochInputs:
-        dp, dv = self._integrate_to(t_us)
+        dp, dv, dv_var = self._integrate_to(t_us)
         dt = (t_us - self._epoch_t) * 1e-6
         restart = self._baro_restart and baro_m is not None
         ep = EpochInputs(
@@ -212,6 +316,7 @@ class EpochBuilder:
             rng=self._aux_for("rng", t_us),
             baro_restart=restart,
         )
+        self.last_dv_var_m2ps2 = dv_var
         self._epoch_t = t_us
         return ep
 

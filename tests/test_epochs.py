@@ -17,8 +17,9 @@ def imu(t_s, f=G):
     return SpecificForceUp(int(round(t_s * 1e6)), 0.0, 0, f, "test")
 
 
-def baro(t_s, h=0.0):
-    return BaroHeight(int(round(t_s * 1e6)), 0.0, 0, h, 1e5, 1)
+def baro(t_s, h=0.0, p_pa=None):
+    # a distinct pressure per sample unless given: exact repeats are a resent measurement
+    return BaroHeight(int(round(t_s * 1e6)), 0.0, 0, h, 1e5 - 12.0 * h - t_s if p_pa is None else p_pa, 1)
 
 
 def rng(t_s, h=1.0):
@@ -62,14 +63,16 @@ def test_aux_stream_leading_the_baro_clock_at_the_same_rate_is_not_lost():
     assert b.counters["rng_superseded"] == 0
 
 
-def test_newest_aux_sample_wins_and_future_ones_wait():
+def test_every_pending_aux_sample_is_used_averaged_and_future_ones_wait():
     b = EpochBuilder(load_config(None))
     eps = feed(b, [imu(0.0), baro(0.0), gnss(0.02, 1.0), gnss(0.05, 2.0), gnss(0.15, 3.0), imu(0.1), baro(0.1),
                    imu(0.2), baro(0.2)])
     e1, e2 = [e for e in eps if not isinstance(e, EpochStart)]
-    assert e1.gnss.height_m == 2.0 and e1.gnss.age_s == pytest.approx(0.05)
+    sigma = load_config(None).sensors.gnss.sigma_z_m
+    assert e1.gnss.height_m == pytest.approx(1.5) and e1.gnss.age_s == pytest.approx(0.065)
+    assert e1.gnss.sigma_m == pytest.approx(sigma / math.sqrt(2))
     assert e2.gnss.height_m == 3.0 and e2.gnss.age_s == pytest.approx(0.05)
-    assert b.counters["gnss_superseded"] == 1
+    assert b.counters["gnss_used"] == 3 and b.counters["gnss_superseded"] == 0
 
 
 def test_baro_gap_forces_epochs_and_restarts_the_differencing():
