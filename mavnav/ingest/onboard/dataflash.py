@@ -407,29 +407,44 @@ def _rangefinder(log: _Log) -> Optional[RangeSeries]:
 
 def _autopilot(log: _Log) -> Optional[AutopilotSeries]:
     ekf = log.param("AHRS_EKF_TYPE")
-    order = ["XKF1", "NKF1", "EKF1"]
+    order = ["XKF1", "NKF1", "EKF1", "CTUN"]
     if ekf == 2:
-        order = ["NKF1", "XKF1", "EKF1"]
+        order = ["NKF1", "XKF1", "EKF1", "CTUN"]
+    if log.param("AHRS_EKF_USE") == 0:
+        # ArduCopter 3.2-3.3 flying on its inertial navigation: the EKF ran
+        # beside it unused (and diverged on some logs); CTUN is what it flew on
+        order = ["CTUN"] + order[:-1]
     for name in order:
-        t = log.table(name)
-        if t is None or "PD" not in t:
-            continue
-        tt = log.time_us(name, t)
-        if tt is None:
-            continue
-        sel = _instance(t, "C", 0)
-        vel = _optional_velocity(t, "VD", -1.0, sel)
-        t_us, up, vel = _sorted(tt[sel], -t["PD"].astype(float)[sel], vel, what=name, damage=log.damage)
-        return AutopilotSeries(name, t_us, up, "ekf_origin", _unmask(vel))
-    t = log.table("CTUN")
-    if t is not None and "Alt" in t:
-        tt = log.time_us("CTUN", t)
-        if tt is not None:
-            sel = np.ones(tt.size, dtype=bool)
-            vel = _optional_velocity(t, "CRt", 0.01, sel) if "CRt" in t else _optional_velocity(t, "CRate", 0.01, sel)
-            t_us, up, vel = _sorted(tt, t["Alt"].astype(float), vel, what="CTUN", damage=log.damage)
-            return AutopilotSeries("CTUN", t_us, up, "home", _unmask(vel))
+        series = _ctun(log) if name == "CTUN" else _ekf_height(log, name)
+        if series is not None:
+            return series
     return None
+
+
+def _ekf_height(log: _Log, name: str) -> Optional[AutopilotSeries]:
+    t = log.table(name)
+    if t is None or "PD" not in t:
+        return None
+    tt = log.time_us(name, t)
+    if tt is None:
+        return None
+    sel = _instance(t, "C", 0)
+    vel = _optional_velocity(t, "VD", -1.0, sel)
+    t_us, up, vel = _sorted(tt[sel], -t["PD"].astype(float)[sel], vel, what=name, damage=log.damage)
+    return AutopilotSeries(name, t_us, up, "ekf_origin", _unmask(vel))
+
+
+def _ctun(log: _Log) -> Optional[AutopilotSeries]:
+    t = log.table("CTUN")
+    if t is None or "Alt" not in t:
+        return None
+    tt = log.time_us("CTUN", t)
+    if tt is None:
+        return None
+    sel = np.ones(tt.size, dtype=bool)
+    vel = _optional_velocity(t, "CRt", 0.01, sel) if "CRt" in t else _optional_velocity(t, "CRate", 0.01, sel)
+    t_us, up, vel = _sorted(tt, t["Alt"].astype(float), vel, what="CTUN", damage=log.damage)
+    return AutopilotSeries("CTUN", t_us, up, "home", _unmask(vel))
 
 
 _NO_VALUE = 1e300  # stands for "not logged" through _sorted, which drops non-finite rows
