@@ -40,6 +40,14 @@ class BaroConfig(_Section):
     sigma_bb_m: float = Field(0.5, gt=0)  # RMS of the Gauss-Markov noise u
     gamma_bb_per_s: float = Field(0.5, gt=0)  # its inverse correlation time
     bias_rw_m_per_sqrt_s: float = Field(0.01, ge=0)  # random walk on dH (0: constant, as the paper)
+    # White noise on top of u, measured at run time from the sensor's own
+    # samples (robust spread of second differences over white_window
+    # samples) and held within [white_min_m, white_max_m]: real baros range
+    # from 0.1 m (ArduPilot, 10 Hz) to 0.45 m (PX4 vehicle_air_data, 5 Hz),
+    # see docs/error_models.md. white_max_m 0 turns it off (paper mode).
+    white_min_m: float = Field(0.0, ge=0)
+    white_max_m: float = Field(1.0, ge=0)
+    white_window: int = Field(61, ge=5)
 
 
 class GnssConfig(_Section):

@@ -30,7 +30,8 @@ intervals), so the same rules hold at 400 Hz onboard and at 2 Hz telemetry:
   meas_latency_intervals x (baro interval + its own interval))`` (at most
   ``max_meas_age_s``) at its epoch.
 * **Baro gaps.** When no baro sample comes for ``max(max_epoch_gap_s,
-  epoch_gap_intervals x the baro interval)`` of IMU time, an epoch is forced
+  epoch_gap_intervals x the baro interval)`` of IMU time (``max_meas_age_s``
+  until the baro has shown its cadence), an epoch is forced
   at the IMU time without a baro row and the differencing restarts at the next
   baro sample. A baro sample that waits for IMU data that long is processed
   at once (the IMU then counts as held or unknown). A baro sample repeating
@@ -92,6 +93,7 @@ class EpochBuilder:
         self._gnss_cfg = cfg.sensors.gnss
         self._rng_sigma = cfg.sensors.rangefinder.sigma_m
         self._rng_scale = cfg.sensors.rangefinder.scale_sigma_frac
+        self._baro_cfg = cfg.sensors.baro
         self.counters: Counter[str] = Counter()
         self.reset()
 
@@ -105,7 +107,11 @@ class EpochBuilder:
         self._baro_restart = False
         self._cadence = {k: Cadence() for k in ("imu", "baro", "gnss", "rng")}
         self._scatter_var = math.nan  # of f_up between consecutive IMU samples, (m/s^2)^2
-        self._dv_var = 0.0  # accumulated over the epoch being built
+        self._scatter_n = 0
+        self._baro_d2: deque[float] = deque(maxlen=self._baro_cfg.white_window)  # |second differences|
+        self._baro_last2: deque[float] = deque(maxlen=2)
+        self.baro_white_var_m2 = self._baro_cfg.white_min_m ** 2
+        self.last_dv_var_m2ps2 = 0.0
 
     @property
     def started(self) -> bool:
@@ -119,6 +125,8 @@ class EpochBuilder:
 
     def _max_gap_us(self) -> int:
         f = self._f
+        if self._cadence["baro"].interval_us is None:  # not yet shown its cadence
+            return int(1e6 * max(f.max_epoch_gap_s, f.max_meas_age_s))
         return int(1e6 * max(f.max_epoch_gap_s, f.epoch_gap_intervals * self._interval_s("baro")))
 
     def _latency_us(self, which: str) -> int:
@@ -156,10 +164,11 @@ class EpochBuilder:
         if self._imu:
             prev_t, prev_f = self._imu[-1]
             d2 = 0.5 * (f_up - prev_f) ** 2
+            self._scatter_n += 1
             if self._scatter_var != self._scatter_var:
                 self._scatter_var = d2
-            else:
-                a = min(1.0, (t_us - prev_t) * 1e-6 / self._f.imu_scatter_window_s)
+            else:  # a running mean until the window is full, then exponential
+                a = min(1.0, max((t_us - prev_t) * 1e-6 / self._f.imu_scatter_window_s, 1.0 / self._scatter_n))
                 self._scatter_var += a * (d2 - self._scatter_var)
         self._cadence["imu"].push(t_us)
         self._imu.append((t_us, f_up))
@@ -200,6 +209,7 @@ class EpochBuilder:
             return []
         self._last_baro = b
         self._cadence["baro"].push(b.t_us)
+        self._baro_noise(b.height_ref_m)
         self._pending_baro.append(b)
         out: list[Epoch] = []
         # Ready when IMU data covers it; or at once when the IMU has gone quiet.
@@ -213,6 +223,21 @@ class EpochBuilder:
             else:
                 break
         return out
+
+    def _baro_noise(self, h_m: float) -> None:
+        """Update the baro white-noise estimate: the robust spread (median
+        absolute second difference / 0.6745) of the last samples, whose
+        variance is 6 sigma^2 for white noise; vehicle motion adds little at
+        baro rates and a step or a spike moves a median by one sample."""
+        c = self._baro_cfg
+        last = self._baro_last2
+        if len(last) == 2:
+            self._baro_d2.append(abs(h_m - 2.0 * last[1] + last[0]))
+            if len(self._baro_d2) >= 5:
+                sigma = sorted(self._baro_d2)[len(self._baro_d2) // 2] / 0.6745 / math.sqrt(6.0)
+                sigma = min(max(sigma, c.white_min_m), c.white_max_m)
+                self.baro_white_var_m2 = sigma * sigma
+        last.append(h_m)
 
     def _on_aux(self, s, which: str) -> None:
         self.counters[f"{which}_in"] += 1
