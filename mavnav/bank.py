@@ -1,12 +1,13 @@
 """The three channels stepped together: mavnav's production filter.
 
 Same filter as :func:`mavnav.channel.step` (MODEL.md eq. 16-17; that module
-is the readable reference), unrolled for the structure of the model and
-compiled with numba:
+is the readable reference), specialised to the structure of the model and
+compiled with numba (state ``[H, Vz, dH, da, b_g]``):
 
-* ``Phi`` is sparse (``1, T, -T^2/2, -T``) and applied in closed form;
-* ``Bxx = g g^T + diag(0, 0, q_dH, q_da)``, ``g = -q_a [T^2/2, T, 0, 0]``, so
-  ``Bxy`` and ``Byy`` reduce to scalar products;
+* ``Phi`` is sparse (``1, T, -T^2/2, -T``, and ``phi_g`` on the GNSS error
+  ``b_g``) and applied in closed form;
+* ``Bxx = g g^T + diag(0, 0, q_dH, q_da, q_g)``, ``g = -q_a [T^2/2, T, 0, 0, 0]``,
+  so ``Bxy`` and ``Byy`` reduce to scalar products;
 * at most two rows per channel (baro and its own aux sensor), so ``S`` is
   inverted in closed form.
 
@@ -27,7 +28,8 @@ from typing import Optional
 
 import numpy as np
 
-from .channel import CHANNELS, N_STATES, ChannelState, EpochInputs, Model, _check_finite, fix_height, initial_state
+from .channel import (AUX_GB, CHANNELS, GB, N_STATES, ChannelState, EpochInputs, Model, _check_finite, fix_height,
+                      gnss_gauss_markov, initial_state)
 
 try:  # numba is a dependency; the kernel also runs (slowly) as plain Python.
     from numba import njit
@@ -40,10 +42,13 @@ except ImportError:  # pragma: no cover
 N_CH = len(CHANNELS)
 GNSS, RNG, BARO = 0, 1, 2
 ROW_BARO, ROW_AUX = 0, 1
+# the aux row's entry at b_g per channel (the GNSS row observes the GNSS error)
+AUX_GB_ROW = tuple(float(AUX_GB[k]) for k in CHANNELS)
+assert N_STATES == 5 and GB == 4  # the kernels below spell out Phi and Bxx for this layout
 
 
 @njit(cache=True, fastmath=False)
-def bank_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da,
+def bank_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da, phi_g, q_g,
                 has_baro, baro_on, xi_new, phi_u, gamma_u2,
                 aux_on, aux_z, aux_var, aux_age,
                 inn, sdiag, s12_out, nis_out, dof_out, K, Fy, Hr, rb):  # pragma: no cover - compiled
@@ -60,165 +65,160 @@ def bank_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da,
     ``j < dof``: the gain column ``K[c, :, j]``, ``Phi_y`` row ``Fy[c, j]``,
     observation row ``Hr[c, j]`` (of ``x(k+1)``) and whether it is the baro
     row ``rb[c, j]``.
+
+    ``Phi`` acts in closed form (rows 0, 1 mix H, Vz, da; ``b_g`` decays by
+    ``phi_g``); ``Bxx = g g^T + diag(0, 0, q_dh, q_da, q_g)`` with
+    ``g = (g0, g1, 0, 0, 0)``, so ``Bxx h^T = g (g . h) + qd * h``.
     """
+    n = x.shape[1]
     hT2 = 0.5 * T * T
+    qd = np.zeros(n)
+    qd[2] = q_dh; qd[3] = q_da; qd[4] = q_g
+    A = np.empty((n, n))  # Phi P
+    Pp = np.empty((n, n))  # Phi P Phi^T + Bxx (upper triangle)
+    xp = np.empty(n)
+    U = np.empty((2, n))  # P f^T per row
+    C = np.empty((2, n))  # Phi P f^T + Bxx h^T per row
+    Kc = np.empty((2, n))  # gain per row
+    R = np.empty(2)
+    Y = np.empty(2)
+    GH = np.empty(2)
     for c in range(x.shape[0]):
-        p00 = P[c, 0, 0]; p01 = P[c, 0, 1]; p02 = P[c, 0, 2]; p03 = P[c, 0, 3]
-        p11 = P[c, 1, 1]; p12 = P[c, 1, 2]; p13 = P[c, 1, 3]
-        p22 = P[c, 2, 2]; p23 = P[c, 2, 3]
-        p33 = P[c, 3, 3]
-        x0 = x[c, 0]; x1 = x[c, 1]; x2 = x[c, 2]; x3 = x[c, 3]
         # prediction: Phi x + psi_w, Pp = Phi P Phi^T + Bxx
-        xp0 = x0 + T * x1 - hT2 * x3 + dp
-        xp1 = x1 - T * x3 + dv
-        a00 = p00 + T * p01 - hT2 * p03
-        a01 = p01 + T * p11 - hT2 * p13
-        a02 = p02 + T * p12 - hT2 * p23
-        a03 = p03 + T * p13 - hT2 * p33
-        a11 = p11 - T * p13
-        a12 = p12 - T * p23
-        a13 = p13 - T * p33
-        q00 = a00 + T * a01 - hT2 * a03 + g0 * g0
-        q01 = a01 - T * a03 + g0 * g1
-        q02 = a02
-        q03 = a03
-        q11 = a11 - T * a13 + g1 * g1
-        q12 = a12
-        q13 = a13
-        q22 = p22 + q_dh
-        q23 = p23
-        q33 = p33 + q_da
-        # rows
+        for i in range(n):
+            xp[i] = x[c, i]
+        xp[0] = x[c, 0] + T * x[c, 1] - hT2 * x[c, 3] + dp
+        xp[1] = x[c, 1] - T * x[c, 3] + dv
+        xp[4] = phi_g * x[c, 4]
+        for j in range(n):
+            A[0, j] = P[c, 0, j] + T * P[c, 1, j] - hT2 * P[c, 3, j]
+            A[1, j] = P[c, 1, j] - T * P[c, 3, j]
+            A[2, j] = P[c, 2, j]
+            A[3, j] = P[c, 3, j]
+            A[4, j] = phi_g * P[c, 4, j]
+        for i in range(n):
+            Pp[i, 0] = A[i, 0] + T * A[i, 1] - hT2 * A[i, 3]
+            Pp[i, 1] = A[i, 1] - T * A[i, 3]
+            Pp[i, 2] = A[i, 2]
+            Pp[i, 3] = A[i, 3]
+            Pp[i, 4] = phi_g * A[i, 4]
+        Pp[0, 0] += g0 * g0; Pp[0, 1] += g0 * g1; Pp[1, 1] += g1 * g1
+        for i in range(2, n):
+            Pp[i, i] += qd[i]
+        # rows: observation row h (of x(k+1)), Phi_y row f, y, noise R
         use_b = has_baro and baro_on[c] and not math.isnan(baro_prev[c])
         use_a = aux_on[c]
         inn[c, 0] = math.nan; inn[c, 1] = math.nan
         sdiag[c, 0] = math.nan; sdiag[c, 1] = math.nan
         s12_out[c] = 0.0
+        for j in range(2):
+            rb[c, j] = False
+            for i in range(n):
+                K[c, i, j] = 0.0
+                Hr[c, j, i] = 0.0
+                Fy[c, j, i] = 0.0
         nr = 0
-        # slot 1 / slot 2 row descriptors
-        f10 = f11 = f12 = f13 = gh1 = y1 = n1 = 0.0
-        f20 = f21 = f22 = f23 = gh2 = y2 = n2 = 0.0
-        b1 = False
         if use_b:
             am = 1.0 - phi_u
-            f10 = am; f11 = T; f12 = am; f13 = -hT2
-            gh1 = g0; b1 = True
-            y1 = xi_new - phi_u * baro_prev[c] - dp
-            n1 = gamma_u2
+            Hr[c, 0, 0] = 1.0; Hr[c, 0, 2] = 1.0
+            Fy[c, 0, 0] = am; Fy[c, 0, 1] = T; Fy[c, 0, 2] = am; Fy[c, 0, 3] = -hT2
+            Y[0] = xi_new - phi_u * baro_prev[c] - dp
+            R[0] = gamma_u2
+            rb[c, 0] = True
             nr = 1
         if use_a:
             age = aux_age[c]
-            fa0 = 1.0; fa1 = T - age; fa2 = 0.0; fa3 = -hT2 + age * T
-            gha = g0 - age * g1
-            ya = aux_z[c] - (dp - age * dv)
-            na = aux_var[c]
-            if nr == 0:
-                f10 = fa0; f11 = fa1; f12 = fa2; f13 = fa3; gh1 = gha; y1 = ya; n1 = na
-                nr = 1
-            else:
-                f20 = fa0; f21 = fa1; f22 = fa2; f23 = fa3; gh2 = gha; y2 = ya; n2 = na
-                nr = 2
+            gb = AUX_GB_ROW[c]
+            Hr[c, nr, 0] = 1.0; Hr[c, nr, 1] = -age; Hr[c, nr, 4] = gb
+            Fy[c, nr, 0] = 1.0; Fy[c, nr, 1] = T - age; Fy[c, nr, 3] = -hT2 + age * T
+            Fy[c, nr, 4] = gb * phi_g
+            Y[nr] = aux_z[c] - (dp - age * dv)
+            R[nr] = aux_var[c]
+            nr += 1
         dof_out[c] = nr
-        rb[c, 0] = b1
-        rb[c, 1] = False
-        Fy[c, 0, 0] = f10; Fy[c, 0, 1] = f11; Fy[c, 0, 2] = f12; Fy[c, 0, 3] = f13
-        Fy[c, 1, 0] = f20; Fy[c, 1, 1] = f21; Fy[c, 1, 2] = f22; Fy[c, 1, 3] = f23
-        for j in range(2):
-            for i in range(4):
-                K[c, i, j] = 0.0
-                Hr[c, j, i] = 0.0
-        if nr >= 1:
-            if b1:
-                Hr[c, 0, 0] = 1.0; Hr[c, 0, 2] = 1.0
-            else:
-                Hr[c, 0, 0] = 1.0; Hr[c, 0, 1] = -aux_age[c]
-        if nr == 2:
-            Hr[c, 1, 0] = 1.0; Hr[c, 1, 1] = -aux_age[c]
         if has_baro and baro_on[c]:
             baro_prev[c] = xi_new
         else:
             baro_prev[c] = math.nan
-        if nr == 0:
-            n00 = q00; n01 = q01; n02 = q02; n03 = q03; n11 = q11; n12 = q12; n13 = q13
-            n22 = q22; n23 = q23; n33 = q33
-            x[c, 0] = xp0; x[c, 1] = xp1
-            nis_out[c] = 0.0
+        # per row: U = P f^T, C = Phi U + Bxx h^T, innovation
+        for r in range(nr):
+            for i in range(n):
+                acc = 0.0
+                for j in range(n):
+                    acc += P[c, i, j] * Fy[c, r, j]
+                U[r, i] = acc
+            gh = g0 * Hr[c, r, 0] + g1 * Hr[c, r, 1]
+            GH[r] = gh
+            C[r, 0] = U[r, 0] + T * U[r, 1] - hT2 * U[r, 3] + g0 * gh
+            C[r, 1] = U[r, 1] - T * U[r, 3] + g1 * gh
+            C[r, 2] = U[r, 2] + qd[2] * Hr[c, r, 2]
+            C[r, 3] = U[r, 3] + qd[3] * Hr[c, r, 3]
+            C[r, 4] = phi_g * U[r, 4] + qd[4] * Hr[c, r, 4]
+            acc = 0.0
+            for i in range(n):
+                acc += Fy[c, r, i] * x[c, i]
+            Y[r] -= acc  # now the innovation
+        # S = f P f^T + h Bxx h^T + R and the gain K = C^T S^-1 (the sums in
+        # this order make the filter with b_g off bitwise the 4-state one)
+        if nr == 1:
+            fu = 0.0
+            qhh = 0.0
+            for i in range(n):
+                fu += Fy[c, 0, i] * U[0, i]
+                qhh += qd[i] * Hr[c, 0, i] * Hr[c, 0, i]
+            s11 = fu + GH[0] * GH[0] + R[0] + qhh
+            for i in range(n):
+                Kc[0, i] = C[0, i] / s11
+            nis_out[c] = Y[0] * Y[0] / s11
+            slot = 0 if rb[c, 0] else 1
+            inn[c, slot] = Y[0]
+            sdiag[c, slot] = s11
+        elif nr == 2:
+            fu11 = fu22 = fu12 = 0.0
+            q11 = q22 = q12 = 0.0
+            for i in range(n):
+                fu11 += Fy[c, 0, i] * U[0, i]
+                fu22 += Fy[c, 1, i] * U[1, i]
+                fu12 += Fy[c, 0, i] * U[1, i]
+                q11 += qd[i] * Hr[c, 0, i] * Hr[c, 0, i]
+                q22 += qd[i] * Hr[c, 1, i] * Hr[c, 1, i]
+                q12 += qd[i] * Hr[c, 0, i] * Hr[c, 1, i]
+            s11 = fu11 + GH[0] * GH[0] + R[0] + q11
+            s22 = fu22 + GH[1] * GH[1] + R[1] + q22
+            s12 = fu12 + GH[0] * GH[1] + q12
+            det = s11 * s22 - s12 * s12
+            w11 = s22 / det; w12 = -s12 / det; w22 = s11 / det
+            for i in range(n):
+                Kc[0, i] = C[0, i] * w11 + C[1, i] * w12
+                Kc[1, i] = C[0, i] * w12 + C[1, i] * w22
+            i1 = Y[0]; i2 = Y[1]
+            nis_out[c] = i1 * (w11 * i1 + w12 * i2) + i2 * (w12 * i1 + w22 * i2)
+            inn[c, 0] = i1; sdiag[c, 0] = s11
+            inn[c, 1] = i2; sdiag[c, 1] = s22
+            s12_out[c] = s12
         else:
-            # row 1: u = P f^T, C = Phi u + Bxy, innovation, S11
-            u0 = p00 * f10 + p01 * f11 + p02 * f12 + p03 * f13
-            u1 = p01 * f10 + p11 * f11 + p12 * f12 + p13 * f13
-            u2 = p02 * f10 + p12 * f11 + p22 * f12 + p23 * f13
-            u3 = p03 * f10 + p13 * f11 + p23 * f12 + p33 * f13
-            c10 = u0 + T * u1 - hT2 * u3 + g0 * gh1
-            c11 = u1 - T * u3 + g1 * gh1
-            c12 = u2 + (q_dh if b1 else 0.0)
-            c13 = u3
-            i1 = y1 - (f10 * x0 + f11 * x1 + f12 * x2 + f13 * x3)
-            s11 = f10 * u0 + f11 * u1 + f12 * u2 + f13 * u3 + gh1 * gh1 + n1 + (q_dh if b1 else 0.0)
-            if nr == 1:
-                k0 = c10 / s11; k1 = c11 / s11; k2 = c12 / s11; k3 = c13 / s11
-                x[c, 0] = xp0 + k0 * i1; x[c, 1] = xp1 + k1 * i1
-                x[c, 2] = x2 + k2 * i1; x[c, 3] = x3 + k3 * i1
-                n00 = q00 - k0 * c10; n01 = q01 - k0 * c11; n02 = q02 - k0 * c12; n03 = q03 - k0 * c13
-                n11 = q11 - k1 * c11; n12 = q12 - k1 * c12; n13 = q13 - k1 * c13
-                n22 = q22 - k2 * c12; n23 = q23 - k2 * c13
-                n33 = q33 - k3 * c13
-                nis_out[c] = i1 * i1 / s11
-                K[c, 0, 0] = k0; K[c, 1, 0] = k1; K[c, 2, 0] = k2; K[c, 3, 0] = k3
-                slot = 0 if b1 else 1
-                inn[c, slot] = i1
-                sdiag[c, slot] = s11
-            else:
-                v0 = p00 * f20 + p01 * f21 + p02 * f22 + p03 * f23
-                v1 = p01 * f20 + p11 * f21 + p12 * f22 + p13 * f23
-                v2 = p02 * f20 + p12 * f21 + p22 * f22 + p23 * f23
-                v3 = p03 * f20 + p13 * f21 + p23 * f22 + p33 * f23
-                c20 = v0 + T * v1 - hT2 * v3 + g0 * gh2
-                c21 = v1 - T * v3 + g1 * gh2
-                c22 = v2
-                c23 = v3
-                i2 = y2 - (f20 * x0 + f21 * x1 + f22 * x2 + f23 * x3)
-                s22 = f20 * v0 + f21 * v1 + f22 * v2 + f23 * v3 + gh2 * gh2 + n2
-                s12 = f10 * v0 + f11 * v1 + f12 * v2 + f13 * v3 + gh1 * gh2
-                det = s11 * s22 - s12 * s12
-                w11 = s22 / det; w12 = -s12 / det; w22 = s11 / det
-                ka0 = c10 * w11 + c20 * w12; kb0 = c10 * w12 + c20 * w22
-                ka1 = c11 * w11 + c21 * w12; kb1 = c11 * w12 + c21 * w22
-                ka2 = c12 * w11 + c22 * w12; kb2 = c12 * w12 + c22 * w22
-                ka3 = c13 * w11 + c23 * w12; kb3 = c13 * w12 + c23 * w22
-                x[c, 0] = xp0 + ka0 * i1 + kb0 * i2
-                x[c, 1] = xp1 + ka1 * i1 + kb1 * i2
-                x[c, 2] = x2 + ka2 * i1 + kb2 * i2
-                x[c, 3] = x3 + ka3 * i1 + kb3 * i2
-                n00 = q00 - ka0 * c10 - kb0 * c20
-                n01 = q01 - ka0 * c11 - kb0 * c21
-                n02 = q02 - ka0 * c12 - kb0 * c22
-                n03 = q03 - ka0 * c13 - kb0 * c23
-                n11 = q11 - ka1 * c11 - kb1 * c21
-                n12 = q12 - ka1 * c12 - kb1 * c22
-                n13 = q13 - ka1 * c13 - kb1 * c23
-                n22 = q22 - ka2 * c12 - kb2 * c22
-                n23 = q23 - ka2 * c13 - kb2 * c23
-                n33 = q33 - ka3 * c13 - kb3 * c23
-                nis_out[c] = i1 * (w11 * i1 + w12 * i2) + i2 * (w12 * i1 + w22 * i2)
-                K[c, 0, 0] = ka0; K[c, 1, 0] = ka1; K[c, 2, 0] = ka2; K[c, 3, 0] = ka3
-                K[c, 0, 1] = kb0; K[c, 1, 1] = kb1; K[c, 2, 1] = kb2; K[c, 3, 1] = kb3
-                inn[c, 0] = i1; sdiag[c, 0] = s11
-                inn[c, 1] = i2; sdiag[c, 1] = s22
-                s12_out[c] = s12
-        if nr == 0:
-            x[c, 2] = x2; x[c, 3] = x3
-        P[c, 0, 0] = n00; P[c, 0, 1] = n01; P[c, 0, 2] = n02; P[c, 0, 3] = n03
-        P[c, 1, 0] = n01; P[c, 1, 1] = n11; P[c, 1, 2] = n12; P[c, 1, 3] = n13
-        P[c, 2, 0] = n02; P[c, 2, 1] = n12; P[c, 2, 2] = n22; P[c, 2, 3] = n23
-        P[c, 3, 0] = n03; P[c, 3, 1] = n13; P[c, 3, 2] = n23; P[c, 3, 3] = n33
+            nis_out[c] = 0.0
+        # x+ = xp + K r, P+ = Pp - K C^T (upper triangle, mirrored)
+        for i in range(n):
+            acc = xp[i]
+            for r in range(nr):
+                acc += Kc[r, i] * Y[r]
+                K[c, i, r] = Kc[r, i]
+            x[c, i] = acc
+        for i in range(n):
+            for j in range(i, n):
+                acc = Pp[i, j]
+                for r in range(nr):
+                    acc -= Kc[r, i] * C[r, j]
+                P[c, i, j] = acc
+                P[c, j, i] = acc
 
 
 PAIRS = ((GNSS, RNG), (GNSS, BARO), (RNG, BARO))
 
 
 @njit(cache=True)
-def cross_kernel(Pc, pairs, T, g0, g1, q_dh, q_da, gamma_u2, dof, K, Fy, Hr, rb):  # pragma: no cover
+def cross_kernel(Pc, pairs, T, g0, g1, q_dh, q_da, phi_g, q_g, gamma_u2, dof, K, Fy, Hr, rb):  # pragma: no cover
     """Propagate the cross-covariances ``Pc[p] = cov(e_a, e_b)`` of channel pairs.
 
     The channels share the INS (process noise ``w``) and the baro (its
@@ -228,57 +228,62 @@ def cross_kernel(Pc, pairs, T, g0, g1, q_dh, q_da, gamma_u2, dof, K, Fy, Hr, rb)
         Pc+ = A_a Pc A_b^T + Bxx - K_a H_a Bxx - Bxx H_b^T K_b^T
               + K_a (H_a Bxx H_b^T + R_ab) K_b^T,
 
-    ``R_ab = gamma_u^2`` between two baro rows, else 0.
+    ``R_ab = gamma_u^2`` between two baro rows, else 0. (The GNSS error
+    ``b_g`` is one truth shared by every channel, so its process noise is in
+    the common ``Bxx`` too.)
     """
+    n = Pc.shape[1]
     hT2 = 0.5 * T * T
-    Phi = np.eye(4)
-    Phi[0, 1] = T; Phi[0, 3] = -hT2; Phi[1, 3] = -T
-    Bxx = np.zeros((4, 4))
-    g = np.array([g0, g1, 0.0, 0.0])
-    for i in range(4):
-        for j in range(4):
+    Phi = np.eye(n)
+    Phi[0, 1] = T; Phi[0, 3] = -hT2; Phi[1, 3] = -T; Phi[4, 4] = phi_g
+    Bxx = np.zeros((n, n))
+    g = np.zeros(n)
+    g[0] = g0; g[1] = g1
+    for i in range(n):
+        for j in range(n):
             Bxx[i, j] = g[i] * g[j]
     Bxx[2, 2] += q_dh
     Bxx[3, 3] += q_da
-    A = np.empty((2, 4, 4))
-    HB = np.empty((2, 2, 4))  # H Bxx per side
+    Bxx[4, 4] += q_g
+    A = np.empty((2, n, n))
+    HB = np.empty((2, 2, n))  # H Bxx per side
+    tmp = np.empty((n, n))
+    out = np.empty((n, n))
     for p in range(pairs.shape[0]):
         ca = pairs[p, 0]
         cb = pairs[p, 1]
         for side in range(2):
             c = ca if side == 0 else cb
-            for i in range(4):
-                for j in range(4):
+            for i in range(n):
+                for j in range(n):
                     acc = Phi[i, j]
                     for r in range(dof[c]):
                         acc -= K[c, i, r] * Fy[c, r, j]
                     A[side, i, j] = acc
             for r in range(2):
-                for j in range(4):
+                for j in range(n):
                     acc = 0.0
-                    for m in range(4):
+                    for m in range(n):
                         acc += Hr[c, r, m] * Bxx[m, j]
                     HB[side, r, j] = acc
         # A_a Pc A_b^T
-        tmp = np.zeros((4, 4))
-        for i in range(4):
-            for j in range(4):
+        for i in range(n):
+            for j in range(n):
                 acc = 0.0
-                for m in range(4):
+                for m in range(n):
                     acc += A[0, i, m] * Pc[p, m, j]
                 tmp[i, j] = acc
-        out = np.zeros((4, 4))
-        for i in range(4):
-            for j in range(4):
+        for i in range(n):
+            for j in range(n):
                 acc = 0.0
-                for m in range(4):
+                for m in range(n):
                     acc += tmp[i, m] * A[1, j, m]
                 out[i, j] = acc + Bxx[i, j]
         na = dof[ca]
         nb = dof[cb]
         # - K_a H_a Bxx - Bxx H_b^T K_b^T
-        for i in range(4):
-            for j in range(4):
+        for i in range(n):
+            for j in range(n):
                 acc = 0.0
                 for r in range(na):
                     acc += K[ca, i, r] * HB[0, r, j]
@@ -289,15 +294,15 @@ def cross_kernel(Pc, pairs, T, g0, g1, q_dh, q_da, gamma_u2, dof, K, Fy, Hr, rb)
         for r in range(na):
             for s in range(nb):
                 m_rs = 0.0
-                for m in range(4):
+                for m in range(n):
                     m_rs += HB[0, r, m] * Hr[cb, s, m]
                 if rb[ca, r] and rb[cb, s]:
                     m_rs += gamma_u2
-                for i in range(4):
-                    for j in range(4):
+                for i in range(n):
+                    for j in range(n):
                         out[i, j] += K[ca, i, r] * m_rs * K[cb, j, s]
-        for i in range(4):
-            for j in range(4):
+        for i in range(n):
+            for j in range(n):
                 Pc[p, i, j] = out[i, j]
 
 
@@ -400,7 +405,7 @@ class ChannelBank:
         g0, _ = self._g(T)
         phi_u = math.exp(-m.gamma_bb_per_s * T)
         a = 1.0 - phi_u
-        f = np.array([a, T, a, -0.5 * T * T])
+        f = np.array([a, T, a, -0.5 * T * T, 0.0])
         y = ep.baro_m - phi_u * prev - ep.dp_m
         r = y - float(f @ self.x[c])
         q_dh = m.baro_bias_rw_m_per_sqrt_s**2 * T
@@ -429,17 +434,14 @@ class ChannelBank:
         at epoch ``ep``, before it enters (for the chi-square gate)."""
         T = ep.dt_s
         g0, g1 = self._g(T)
+        phi_g, q_g = gnss_gauss_markov(T, self.model)
         age = aux.age_s
-        x = self.x[c]
-        P = self.P[c]
-        f0, f1, f3 = 1.0, T - age, -0.5 * T * T + age * T
+        gb = AUX_GB_ROW[c]
+        f = np.array([1.0, T - age, 0.0, -0.5 * T * T + age * T, gb * phi_g])
         y = aux.height_m - (ep.dp_m - age * ep.dv_mps)
-        r = y - (f0 * x[0] + f1 * x[1] + f3 * x[3])
-        u0 = P[0, 0] * f0 + P[0, 1] * f1 + P[0, 3] * f3
-        u1 = P[1, 0] * f0 + P[1, 1] * f1 + P[1, 3] * f3
-        u3 = P[3, 0] * f0 + P[3, 1] * f1 + P[3, 3] * f3
+        r = y - float(f @ self.x[c])
         gh = g0 - age * g1
-        S = f0 * u0 + f1 * u1 + f3 * u3 + gh * gh + aux.sigma_m * aux.sigma_m
+        S = float(f @ self.P[c] @ f) + gh * gh + gb * gb * q_g + aux.sigma_m * aux.sigma_m
         return float(r), float(S)
 
     def step(self, ep: EpochInputs) -> BankStep:
@@ -452,6 +454,7 @@ class ChannelBank:
         has_baro = ep.baro_m is not None
         phi_u = math.exp(-m.gamma_bb_per_s * T)
         gamma_u2 = m.sigma_bb_m**2 * (1.0 - phi_u * phi_u)
+        phi_g, q_g = gnss_gauss_markov(T, m)
         if has_baro and ep.baro_restart:
             self.baro_prev[:] = math.nan
         aux_on = self._aux_on
@@ -463,13 +466,13 @@ class ChannelBank:
                 self._aux_z[c] = a.height_m
                 self._aux_var[c] = a.sigma_m * a.sigma_m
                 self._aux_age[c] = a.age_s
-        bank_kernel(self.x, self.P, self.baro_prev, T, ep.dp_m, ep.dv_mps, g0, g1, q_dh, q_da,
+        bank_kernel(self.x, self.P, self.baro_prev, T, ep.dp_m, ep.dv_mps, g0, g1, q_dh, q_da, phi_g, q_g,
                     has_baro, self.baro_on, ep.baro_m if has_baro else 0.0, phi_u, gamma_u2,
                     aux_on, self._aux_z, self._aux_var, self._aux_age,
                     self._inn, self._sdiag, self._s12, self._nis, self._dof,
                     self._K, self._Fy, self._Hr, self._rb)
         if self.track_cross:
-            cross_kernel(self.Pc, self._pairs, T, g0, g1, q_dh, q_da, gamma_u2, self._dof,
+            cross_kernel(self.Pc, self._pairs, T, g0, g1, q_dh, q_da, phi_g, q_g, gamma_u2, self._dof,
                          self._K, self._Fy, self._Hr, self._rb)
         self.t_us = ep.t_us
         return BankStep(ep.t_us, self._inn.copy(), self._sdiag.copy(), self._s12.copy(),

@@ -1,8 +1,20 @@
-"""One height channel of the paper: a 4-state Kalman filter with the INS as control.
+"""One height channel of the paper: a Kalman filter with the INS as control.
 
-State ``X = [H, Vz, dH, da]`` (named indices below): height above the
+State ``X = [H, Vz, dH, da, b_g]`` (named indices below): height above the
 reference (m, up), vertical speed (m/s, up), barometer bias (m), accelerometer
-bias (m/s^2). The vertical specific force enters as a control input, already
+bias (m/s^2), and the slow GNSS vertical error (m). The first four are the
+paper's (MODEL.md section 3). ``b_g`` is not in the paper: GNSS altitude
+wanders by metres over minutes relative to the baro (multipath, satellite
+geometry), which white noise alone cannot describe, so the GNSS error is
+white noise plus a first-order Gauss-Markov process,
+``b(k+1) = phi_g b(k) + w_b``, ``phi_g = exp(-T / tau_g)``,
+``var(w_b) = sigma_g^2 (1 - phi_g^2)`` (exact discretisation), started at
+``b = 0`` with variance ``sigma_g^2`` (``sensors.gnss.gm_sigma_m``,
+``gm_tau_s``). Every channel carries ``b_g`` (a uniform shape keeps the
+cross-covariances of :mod:`mavnav.bank` simple); only the GNSS row observes
+it. With ``sigma_g = 0`` (paper mode) ``b_g`` stays exactly 0 with zero
+variance and the first four states are the paper's 4-state filter.
+The vertical specific force enters as a control input, already
 integrated over the epoch by :mod:`mavnav.epochs` (``dp_m``, ``dv_mps``:
 the position and velocity increments of ``f_up - g`` from zero initial
 velocity; with one IMU sample per epoch they equal the paper's ``Psi W``).
@@ -11,17 +23,21 @@ Measurement rows, each written against ``X(k)`` (MODEL.md section 4):
 
 * baro, by differencing out the Gauss-Markov noise ``u``:
   ``y1 = xi1(k+1) - phi_u xi1(k) - H1 psi_w``, ``Phi_y1 = H1 Phi - phi_u H1``,
-  ``H1 = [1, 0, 1, 0]``, noise ``H1 w + gamma_u n`` with
+  ``H1 = [1, 0, 1, 0, 0]``, noise ``H1 w + gamma_u n`` with
   ``gamma_u^2 = sigma_bb^2 (1 - phi_u^2)`` (erratum: the paper prints ``-phi_u^2``);
 * GNSS / rangefinder height measured ``age`` seconds before the epoch:
-  ``h = [1, -age, 0, 0]`` (first order in the age), ``y = z - h psi_w``,
-  ``Phi_y = h Phi``, noise ``h w + sigma n``.
+  ``h = [1, -age, 0, 0, 1]`` (GNSS) or ``[1, -age, 0, 0, 0]`` (rangefinder),
+  first order in the age (``b_g`` is slow: its value at the epoch is used),
+  ``y = z - h psi_w``, ``Phi_y = h Phi``, noise ``h w + sigma n``.
 
-``Bxx = Gamma Gamma^T`` (+ optional random walks on dH and da),
-``Gamma = -[T^2/2, T, 0, 0] q_a``, ``q_a = sigma_a sqrt(2 / (alpha_a T))`` by
+``Bxx = Gamma Gamma^T`` (+ optional random walks on dH and da, + the
+Gauss-Markov noise ``var(w_b)`` at ``[b_g, b_g]``; ``w_b`` is independent of
+the INS noise),
+``Gamma = -[T^2/2, T, 0, 0, 0] q_a``, ``q_a = sigma_a sqrt(2 / (alpha_a T))`` by
 default (the dimensionally consistent form; the printed ``sigma_a sqrt(2T /
-alpha_a)`` is selectable to reproduce the paper). ``Bxy = Bxx h^T`` per row,
-``Byy = [h_i Bxx h_j^T] + diag(noise)``.
+alpha_a)`` is selectable to reproduce the paper). ``Bxy = Bxx h^T`` per row
+(the GNSS row's noise ``h w`` carries ``w_b``, so its column has
+``var(w_b)`` at ``b_g``), ``Byy = [h_i Bxx h_j^T] + diag(noise)``.
 
 Channels are configurations of the same filter: ``gnss`` (channel 1: GNSS +
 baro + INS), ``rangefinder`` (channel 2: radio/rangefinder + baro + INS),
@@ -43,15 +59,18 @@ from .errors import NonFiniteInputError
 from .kalman import correlated_step, normalised_innovation
 
 # Named state indices.
-H, VZ, DH, DA = 0, 1, 2, 3
-N_STATES = 4
-STATE_NAMES = ("height_ref_m", "vel_up_mps", "baro_bias_m", "acc_bias_mps2")
+H, VZ, DH, DA, GB = 0, 1, 2, 3, 4
+N_STATES = 5
+N_PAPER = 4  # the paper's states [H, Vz, dH, da]
+STATE_NAMES = ("height_ref_m", "vel_up_mps", "baro_bias_m", "acc_bias_mps2", "gnss_error_m")
 
 ChannelKind = Literal["gnss", "rangefinder", "baro"]
 CHANNELS: tuple[ChannelKind, ...] = ("gnss", "rangefinder", "baro")
 _AUX_ROW = {"gnss": "gnss", "rangefinder": "rng", "baro": None}
+# the entry of the aux row at b_g: the GNSS row observes the GNSS error, the rangefinder row does not
+AUX_GB = {"gnss": 1.0, "rangefinder": 0.0, "baro": 0.0}
 
-H_BARO = np.array([1.0, 0.0, 1.0, 0.0])
+H_BARO = np.array([1.0, 0.0, 1.0, 0.0, 0.0])
 
 
 @dataclass(frozen=True, slots=True)
@@ -66,13 +85,17 @@ class Model:
     baro_bias_rw_m_per_sqrt_s: float
     acc_bias_rw_mps2_per_sqrt_s: float
     gravity_mps2: float
-    p0_diag: tuple[float, float, float, float]
+    p0_diag: tuple[float, float, float, float]  # [H, Vz, dH, da]; b_g starts at gnss_gm_sigma_m^2
     init_from_first_baro: bool
     height_prior: Literal["diffuse", "p0"] = "p0"
+    gnss_gm_sigma_m: float = 0.0  # stationary RMS of the GNSS Gauss-Markov error (0: off)
+    gnss_gm_tau_s: float = 300.0  # its correlation time
 
     @classmethod
     def from_config(cls, cfg: Config) -> "Model":
         s, f = cfg.sensors, cfg.filter
+        # paper mode is exactly the paper: GNSS noise white only
+        gm_sigma = 0.0 if cfg.monitor.mode == "paper" else s.gnss.gm_sigma_m
         return cls(
             sigma_a_mps2=s.ins.sigma_a_mps2,
             alpha_a_per_s=s.ins.alpha_a_per_s,
@@ -85,6 +108,8 @@ class Model:
             p0_diag=(f.p0.height_m2, f.p0.vel_m2ps2, f.p0.baro_bias_m2, f.p0.acc_bias_m2ps4),
             init_from_first_baro=f.init_from_first_baro,
             height_prior=f.height_prior,
+            gnss_gm_sigma_m=gm_sigma,
+            gnss_gm_tau_s=s.gnss.gm_tau_s,
         )
 
 
@@ -92,7 +117,8 @@ class Model:
 
 
 def transition(T: float) -> np.ndarray:
-    """``Phi`` of MODEL.md section 3 for a step of ``T`` seconds."""
+    """``Phi`` of MODEL.md section 3 for a step of ``T`` seconds: the paper's
+    4x4 block of ``[H, Vz, dH, da]`` (:func:`state_transition` is the whole)."""
     return np.array(
         [
             [1.0, T, 0.0, -0.5 * T * T],
@@ -111,7 +137,8 @@ def accel_noise_q(T: float, model: Model) -> float:
 
 
 def process_noise(T: float, model: Model) -> np.ndarray:
-    """``Bxx = Gamma Gamma^T`` plus the optional bias random walks."""
+    """``Bxx = Gamma Gamma^T`` plus the optional bias random walks: the 4x4
+    block of ``[H, Vz, dH, da]`` (:func:`state_process_noise` is the whole)."""
     q = accel_noise_q(T, model)
     g = np.array([-0.5 * T * T * q, -T * q, 0.0, 0.0])
     B = np.outer(g, g)
@@ -124,6 +151,34 @@ def baro_gauss_markov(T: float, model: Model) -> tuple[float, float]:
     """``(phi_u, gamma_u)`` of the baro noise over ``T`` seconds (exact discretisation)."""
     phi = math.exp(-model.gamma_bb_per_s * T)
     return phi, model.sigma_bb_m * math.sqrt(1.0 - phi * phi)
+
+
+def gnss_gauss_markov(T: float, model: Model) -> tuple[float, float]:
+    """``(phi_g, var(w_b))`` of the GNSS error ``b_g`` over ``T`` seconds (exact discretisation)."""
+    phi = math.exp(-T / model.gnss_gm_tau_s)
+    return phi, model.gnss_gm_sigma_m**2 * (1.0 - phi * phi)
+
+
+def state_transition(T: float, model: Model) -> np.ndarray:
+    """``Phi`` of the whole state: :func:`transition` and ``phi_g`` on ``b_g``."""
+    Phi = np.zeros((N_STATES, N_STATES))
+    Phi[:N_PAPER, :N_PAPER] = transition(T)
+    Phi[GB, GB] = gnss_gauss_markov(T, model)[0]
+    return Phi
+
+
+def state_process_noise(T: float, model: Model) -> np.ndarray:
+    """``Bxx`` of the whole state: :func:`process_noise` and ``var(w_b)`` on ``b_g``
+    (``w_b`` is independent of the INS noise)."""
+    B = np.zeros((N_STATES, N_STATES))
+    B[:N_PAPER, :N_PAPER] = process_noise(T, model)
+    B[GB, GB] = gnss_gauss_markov(T, model)[1]
+    return B
+
+
+def prior_covariance(model: Model) -> np.ndarray:
+    """``P0``: ``diag(p0_diag)`` and the stationary ``sigma_g^2`` on ``b_g``."""
+    return np.diag(np.asarray(tuple(model.p0_diag) + (model.gnss_gm_sigma_m**2,), dtype=float))
 
 
 # ------------------------------------------------------------------ inputs, state, output
@@ -154,8 +209,8 @@ class EpochInputs:
 
 @dataclass(frozen=True, slots=True)
 class ChannelState:
-    x: np.ndarray  # (4,)
-    P: np.ndarray  # (4, 4)
+    x: np.ndarray  # (N_STATES,)
+    P: np.ndarray  # (N_STATES, N_STATES)
     t_us: int
     baro_prev_m: Optional[float]  # xi1(k) for the differencing, None when it must restart
 
@@ -198,7 +253,7 @@ def _check_finite(inputs: EpochInputs) -> None:
 def initial_state(model: Model, t_us: int, baro_m: Optional[float]) -> ChannelState:
     """The state at the first baro sample.
 
-    ``height_prior == "p0"``: prior ``[0, 0, 0, 0]``, ``P0``, conditioned on
+    ``height_prior == "p0"``: prior ``0``, ``P0``, conditioned on
     the first baro sample (this makes the differencing filter exactly equal
     to the state-augmented one, see ``tests/test_channel_reference.py``).
     ``"diffuse"``: the same conditioning under an uninformative height prior:
@@ -206,7 +261,7 @@ def initial_state(model: Model, t_us: int, baro_m: Optional[float]) -> ChannelSt
     anti-correlated with ``dH``; nothing assumes the vehicle starts near the
     reference point."""
     x = np.zeros(N_STATES)
-    P = np.diag(np.asarray(model.p0_diag, dtype=float))
+    P = prior_covariance(model)
     if baro_m is not None and not math.isfinite(baro_m):
         raise NonFiniteInputError(f"first baro sample is not finite ({baro_m})")
     if baro_m is not None and model.init_from_first_baro and model.height_prior == "diffuse":
@@ -248,7 +303,7 @@ def measurement_rows(
     aux_name = _AUX_ROW[kind]
     aux = getattr(inputs, aux_name) if aux_name else None
     if aux is not None:
-        h = np.array([1.0, -aux.age_s, 0.0, 0.0])
+        h = np.array([1.0, -aux.age_s, 0.0, 0.0, AUX_GB[kind]])
         names.append(aux_name)
         hs.append(h)
         phis.append(h @ Phi)
@@ -269,9 +324,9 @@ def step(
     """Advance one channel by one epoch. Refuses non-finite inputs."""
     _check_finite(inputs)
     T = inputs.dt_s
-    Phi = transition(T)
-    Bxx = process_noise(T, model)
-    psi_w = np.array([inputs.dp_m, inputs.dv_mps, 0.0, 0.0])
+    Phi = state_transition(T, model)
+    Bxx = state_process_noise(T, model)
+    psi_w = np.array([inputs.dp_m, inputs.dv_mps, 0.0, 0.0, 0.0])
     names, Phi_y, Bxy, Byy, y = measurement_rows(kind, state, inputs, model, Phi, Bxx, psi_w)
     res = correlated_step(state.x, state.P, Phi, psi_w, Bxx, Phi_y, Bxy, Byy, y)
     nis, white = normalised_innovation(res.innovation, res.S)

@@ -14,7 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .channel import CHANNELS, DA, DH, H, VZ, AuxMeasurement, ChannelState, EpochInputs, Model, step
+from .channel import (CHANNELS, DA, DH, H, N_PAPER, N_STATES, VZ, AuxMeasurement, ChannelState, EpochInputs, Model,
+                      prior_covariance, step)
 from .config import Config
 
 
@@ -44,13 +45,15 @@ def covariance_series(cfg: Config, kind: str, duration_s: float) -> CovarianceSe
     dt_us = int(round(T * 1e6))
     gnss = AuxMeasurement(height_m=0.0, sigma_m=cfg.sensors.gnss.sigma_z_m, age_s=0.0)
     rng = AuxMeasurement(height_m=0.0, sigma_m=cfg.sensors.rangefinder.sigma_m, age_s=0.0)
-    state = ChannelState(x=np.zeros(4), P=np.diag(np.asarray(model.p0_diag, float)), t_us=0, baro_prev_m=0.0)
+    state = ChannelState(x=np.zeros(N_STATES), P=prior_covariance(model), t_us=0, baro_prev_m=0.0)
     Ps = [state.P]
     for k in range(1, n + 1):
         ep = EpochInputs(t_us=k * dt_us, dt_s=T, dp_m=0.0, dv_mps=0.0, baro_m=0.0, gnss=gnss, rng=rng)
         state, _ = step(kind, state, ep, model)
         Ps.append(state.P)
     P = np.array(Ps)
+    # with the GNSS error state off, b_g has exactly zero variance: PD is for the rest
+    n_pd = N_STATES if model.gnss_gm_sigma_m > 0 else N_PAPER
     d = np.sqrt(np.maximum(np.einsum("kii->ki", P), 0.0))
     return CovarianceSeries(
         t_s=np.arange(n + 1) * T,
@@ -58,7 +61,7 @@ def covariance_series(cfg: Config, kind: str, duration_s: float) -> CovarianceSe
         rms_vel_mps=d[:, VZ],
         rms_baro_bias_m=d[:, DH],
         rms_acc_bias_mps2=d[:, DA],
-        min_eig=np.linalg.eigvalsh(P)[:, 0],
+        min_eig=np.linalg.eigvalsh(P[:, :n_pd, :n_pd])[:, 0],
     )
 
 

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
+
 import numpy as np
 
-from mavnav.channel import CHANNELS, Model, initial_state, step
+from mavnav.channel import CHANNELS, GB, N_PAPER, Model, initial_state, step
 from mavnav.config import config_from_dict
 from mavnav.epochs import EpochBuilder, EpochStart
+from mavnav.samples import GnssHeight
 from mavnav.synthetic import TrueSensors
 
 
@@ -21,7 +25,7 @@ def config_for(sensors: TrueSensors, **filter_opts):
                         "bias_rw_mps2_per_sqrt_s": 0.0},
                 "baro": {"sigma_bb_m": sensors.sigma_bb_m, "gamma_bb_per_s": sensors.gamma_bb_per_s,
                          "bias_rw_m_per_sqrt_s": 0.0},
-                "gnss": {"sigma_z_m": sensors.sigma_z_m, "use_v_acc": False},
+                "gnss": {"sigma_z_m": sensors.sigma_z_m, "use_v_acc": False, "gm_sigma_m": 0.0},
                 "rangefinder": {"sigma_m": sensors.sigma_rng_m, "scale_sigma_frac": 0.0},
             },
             "filter": {
@@ -52,11 +56,35 @@ def run_channels(flight, cfg, kinds=CHANNELS):
 
 
 def state_errors(flight, rows):
-    """Estimation errors [H, Vz, dH, da] and covariances at each epoch."""
+    """Estimation errors [H, Vz, dH, da] and their covariances at each epoch
+    (the synthetic GNSS noise is white: the GNSS error state, off in
+    :func:`config_for`, must stay exactly 0 with zero variance)."""
     errs, covs = [], []
     for t_us, x, P, _ in rows:
         h, v = flight.truth_at(t_us)
         truth = np.array([h, v, flight.baro_bias_m, flight.acc_bias_mps2])
-        errs.append(x - truth)
-        covs.append(P)
+        assert x[GB] == 0.0 and not P[GB].any()
+        errs.append(x[:N_PAPER] - truth)
+        covs.append(P[:N_PAPER, :N_PAPER])
     return np.array(errs), np.array(covs)
+
+
+def with_gnss_gauss_markov(samples, sigma_m: float, tau_s: float, seed: int):
+    """``samples`` with a first-order Gauss-Markov error added to every GNSS
+    height: ``b(0) ~ N(0, sigma^2)`` at the first GNSS sample, then exactly
+    discretised between samples (``phi = exp(-dt / tau)``, innovation RMS
+    ``sigma sqrt(1 - phi^2)``). Returns ``(samples, {t_us: b})``."""
+    rng = np.random.default_rng(seed)
+    b = sigma_m * rng.standard_normal()
+    t_prev = None
+    out, truth = [], {}
+    for s in samples:
+        if isinstance(s, GnssHeight):
+            if t_prev is not None:
+                phi = math.exp(-(s.t_us - t_prev) * 1e-6 / tau_s)
+                b = phi * b + sigma_m * math.sqrt(1.0 - phi * phi) * rng.standard_normal()
+            t_prev = s.t_us
+            truth[s.t_us] = b
+            s = dataclasses.replace(s, height_ref_m=s.height_ref_m + b, alt_m=s.alt_m + b)
+        out.append(s)
+    return out, truth

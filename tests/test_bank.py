@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from mavnav.bank import CHANNELS, ChannelBank
-from mavnav.channel import AuxMeasurement, EpochInputs, Model, initial_state, step
+from mavnav.channel import GB, N_PAPER, N_STATES, AuxMeasurement, EpochInputs, Model, initial_state, step
 from mavnav.config import config_from_dict
 
 
@@ -34,17 +34,31 @@ def random_epochs(seed: int, n: int, p_baro=0.9, p_gnss=0.3, p_rng=0.5, p_restar
     return out
 
 
-CFG = config_from_dict({"sensors": {"ins": {"bias_rw_mps2_per_sqrt_s": 0.001}, "baro": {"bias_rw_m_per_sqrt_s": 0.01}}})
+def cfg_gm(gm_sigma_m: float, gm_tau_s: float = 300.0):
+    """Bias random walks on; the GNSS Gauss-Markov error state on (sigma > 0) or off."""
+    return config_from_dict({"sensors": {"ins": {"bias_rw_mps2_per_sqrt_s": 0.001},
+                                         "baro": {"bias_rw_m_per_sqrt_s": 0.01},
+                                         "gnss": {"gm_sigma_m": gm_sigma_m, "gm_tau_s": gm_tau_s}}})
 
 
+CFG = cfg_gm(3.0)
+GM = pytest.mark.parametrize("gm_sigma_m", [3.0, 0.0], ids=["gm_on", "gm_off"])
+
+
+@GM
 @pytest.mark.parametrize("form", ["consistent", "printed"])
-def test_bank_equals_reference_channels(form):
-    cfg = CFG.model_copy(update={"filter": CFG.filter.model_copy(update={"accel_noise_form": form})})
+def test_bank_equals_reference_channels(form, gm_sigma_m):
+    cfg = cfg_gm(gm_sigma_m)
+    cfg = cfg.model_copy(update={"filter": cfg.filter.model_copy(update={"accel_noise_form": form})})
     model = Model.from_config(cfg)
+    assert model.gnss_gm_sigma_m == gm_sigma_m and model.gnss_gm_tau_s == 300.0
     bank = ChannelBank(model)
     bank.start(0, 0.5)
     ref = {k: initial_state(model, 0, 0.5) for k in CHANNELS}
     for ep in random_epochs(7, 3000):
+        # the chi-square gates' predictions, before the step
+        pred_aux = {c: bank.predicted_aux(c, ep, a) for c, a in ((0, ep.gnss), (1, ep.rng)) if a is not None}
+        pred_baro = [bank.predicted_baro(c, ep) for c in range(len(CHANNELS))]
         out = bank.step(ep)
         for c, k in enumerate(CHANNELS):
             ref[k], r = step(k, ref[k], ep, model)
@@ -54,6 +68,17 @@ def test_bank_equals_reference_channels(form):
             assert math.isclose(out.nis[c], r.nis, rel_tol=1e-8, abs_tol=1e-12)
             used = [i for i, name in ((0, "baro"), (1, "gnss" if k == "gnss" else "rng")) if name in r.rows]
             np.testing.assert_allclose(out.innovation[c, used], r.innovation, rtol=1e-9, atol=1e-9)
+            if c in pred_aux:
+                np.testing.assert_allclose(pred_aux[c], (out.innovation[c, 1], out.innovation_var[c, 1]), rtol=1e-9)
+            if "baro" in r.rows:
+                np.testing.assert_allclose(pred_baro[c], (out.innovation[c, 0], out.innovation_var[c, 0]), rtol=1e-9)
+        if gm_sigma_m == 0.0:  # the GNSS error state stays exactly 0 with no variance
+            assert not bank.x[:, GB].any() and not bank.P[:, GB].any() and not bank.Pc[:, GB].any()
+            assert not bank.Pc[:, :, GB].any()
+    if gm_sigma_m > 0:  # the GNSS channel has learnt something of b_g; the others have not
+        assert bank.P[0, GB, GB] < 0.9 * gm_sigma_m**2
+        assert bank.x[1, GB] == bank.x[2, GB] == 0.0
+        np.testing.assert_allclose(bank.P[1:, GB, GB], gm_sigma_m**2, rtol=1e-9)
 
 
 def test_bank_detects_a_different_filter():
@@ -70,9 +95,11 @@ def test_bank_detects_a_different_filter():
 
 
 @settings(max_examples=40, deadline=None)
-@given(seed=st.integers(0, 2**31 - 1), p_baro=st.floats(0.0, 1.0), p_gnss=st.floats(0.0, 1.0))
-def test_covariance_stays_spd_and_deterministic(seed, p_baro, p_gnss):
-    model = Model.from_config(CFG)
+@given(seed=st.integers(0, 2**31 - 1), p_baro=st.floats(0.0, 1.0), p_gnss=st.floats(0.0, 1.0),
+       gm_sigma_m=st.sampled_from([3.0, 0.0]))
+def test_covariance_stays_spd_and_deterministic(seed, p_baro, p_gnss, gm_sigma_m):
+    model = Model.from_config(cfg_gm(gm_sigma_m))
+    n = N_STATES if gm_sigma_m > 0 else N_PAPER  # with the state off b_g has exactly zero variance
     eps = random_epochs(seed, 400, p_baro=p_baro, p_gnss=p_gnss)
     runs = []
     for _ in range(2):
@@ -81,7 +108,7 @@ def test_covariance_stays_spd_and_deterministic(seed, p_baro, p_gnss):
         for ep in eps:
             bank.step(ep)
             assert np.allclose(bank.P, np.swapaxes(bank.P, 1, 2), rtol=0, atol=0)
-        assert np.all(np.linalg.eigvalsh(bank.P) > 0)
+        assert np.all(np.linalg.eigvalsh(bank.P[:, :n, :n]) > 0)
         runs.append((bank.x.copy(), bank.P.copy()))
     assert np.array_equal(runs[0][0], runs[1][0]) and np.array_equal(runs[0][1], runs[1][1])
 
@@ -98,10 +125,14 @@ def test_bank_refuses_non_finite_input_and_keeps_state():
     assert np.array_equal(bank.x, x0)
 
 
-def test_cross_covariances_match_monte_carlo():
+@pytest.mark.parametrize("gm_sigma_m, gm_tau_s", [(0.0, 300.0), (3.0, 20.0)], ids=["white", "gauss_markov"])
+def test_cross_covariances_match_monte_carlo(gm_sigma_m, gm_tau_s):
     """The variance of each channel difference is P_a + P_b - 2 P_ab: the
     normalised differences over seeded runs have unit variance; without the
-    cross term they would look about twice as calm as they are."""
+    cross term they would look about twice as calm as they are. Also with a
+    GNSS error that is white + Gauss-Markov (a short correlation time, so it
+    moves within the 12 s runs) and the filters modelling it."""
+    from estimator_helpers import with_gnss_gauss_markov
     from mavnav.epochs import EpochBuilder, EpochStart
     from mavnav.synthetic import Schedule, TrueSensors, paper_flight
 
@@ -112,7 +143,8 @@ def test_cross_covariances_match_monte_carlo():
     cfg = config_from_dict({
         "sensors": {"ins": {"sigma_a_mps2": 0.5, "bias_rw_mps2_per_sqrt_s": 0.0},
                     "baro": {"gamma_bb_per_s": 0.05, "sigma_bb_m": 3.0, "bias_rw_m_per_sqrt_s": 0.0},
-                    "gnss": {"sigma_z_m": 0.5, "use_v_acc": False},
+                    # the filters' GNSS error model is the truth's
+                    "gnss": {"sigma_z_m": 0.5, "use_v_acc": False, "gm_sigma_m": gm_sigma_m, "gm_tau_s": gm_tau_s},
                     "rangefinder": {"sigma_m": 0.5, "scale_sigma_frac": 0.0}},
         # the zero-mean prior: with the diffuse one the baro channel's height
         # error is one large draw per run and 30 runs cannot pin its mean
@@ -124,15 +156,20 @@ def test_cross_covariances_match_monte_carlo():
     z_with, z_without = {p: [] for p in range(3)}, {p: [] for p in range(3)}
     from mavnav.bank import PAIRS
 
-    for seed in range(30):
+    # the GNSS channel's error is largely one draw of b_g per run: more runs
+    runs = 30 if gm_sigma_m == 0 else 120
+    for seed in range(runs):
         rng = np.random.default_rng(seed)
         h0, v0, dh, da = rng.standard_normal(4) * np.sqrt([p0.height_m2, p0.vel_m2ps2, p0.baro_bias_m2, p0.acc_bias_m2ps4])
         s = TrueSensors(**{**sensors.__dict__, "baro_bias_m": dh, "acc_bias_mps2": da})
         flight = paper_flight(seed=seed, sensors=s, schedule=Schedule(duration_s=12.0, gnss_every=25, rng_every=25),
                               h0_m=h0, v0_mps=v0)
+        samples = flight.samples
+        if gm_sigma_m > 0:
+            samples, _ = with_gnss_gauss_markov(samples, gm_sigma_m, gm_tau_s, seed=100 + seed)
         bank, builder = ChannelBank(model), EpochBuilder(cfg)
         n = 0
-        for smp in flight.samples:
+        for smp in samples:
             for ep in builder.push(smp):
                 if isinstance(ep, EpochStart):
                     bank.start(ep.t_us, ep.baro_m)
@@ -154,4 +191,5 @@ def test_cross_covariances_match_monte_carlo():
         assert 0.8 < m < 1.2, (PAIRS[p], m)
     # the cross term matters for the pairs that share the baro most
     # without the cross term, the GNSS/rangefinder difference looks far calmer than it is
-    assert np.mean(z_without[0]) < 0.75
+    if gm_sigma_m == 0:
+        assert np.mean(z_without[0]) < 0.75

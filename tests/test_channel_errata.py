@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from mavnav.channel import H_BARO, DH, H, Model, baro_gauss_markov, process_noise, transition
+from mavnav.channel import (H_BARO, DH, H, N_PAPER, N_STATES, Model, baro_gauss_markov, prior_covariance,
+                            process_noise, transition)
 from mavnav.config import load_config
 from mavnav.covariance import covariance_series
 from mavnav.kalman import posterior_cov_short
@@ -18,9 +19,10 @@ def _baro_gnss_recursion(model: Model, T: float, sigma_z: float, n: int, publish
     Phi = transition(T)
     Bxx = process_noise(T, model)
     phi_u, gamma_u = baro_gauss_markov(T, model)
+    h_b = H_BARO[:N_PAPER]  # the paper's 4 states
     h_g = np.array([1.0, 0.0, 0.0, 0.0])
-    Hm = np.array([H_BARO, h_g])
-    Phi_y = np.array([H_BARO @ Phi - phi_u * H_BARO, h_g @ Phi])
+    Hm = np.array([h_b, h_g])
+    Phi_y = np.array([h_b @ Phi - phi_u * h_b, h_g @ Phi])
     Bxy = Bxx @ Hm.T
     baro_term = -(phi_u**2) if published_sign else gamma_u**2
     Byy = Hm @ Bxx @ Hm.T + np.diag([baro_term, sigma_z**2])
@@ -54,7 +56,7 @@ def test_channel_3_observes_only_height_plus_bias():
     # ...while the variance of H + dH collapses (recomputed from the full P).
     from mavnav.channel import ChannelState, EpochInputs, step
 
-    state = ChannelState(x=np.zeros(4), P=np.diag(np.asarray(model.p0_diag, float)), t_us=0, baro_prev_m=0.0)
+    state = ChannelState(x=np.zeros(N_STATES), P=prior_covariance(model), t_us=0, baro_prev_m=0.0)
     for k in range(1, 1001):
         state, _ = step("baro", state, EpochInputs(t_us=k * 20000, dt_s=0.02, dp_m=0.0, dv_mps=0.0, baro_m=0.0), model)
     var_sum = state.P[H, H] + state.P[DH, DH] + 2 * state.P[H, DH]
