@@ -31,7 +31,8 @@ def cfg_for(mode="adaptive", **features):
     return config_from_dict({
         "sensors": {"ins": {"sigma_a_mps2": s.sigma_a_mps2, "alpha_a_per_s": s.alpha_a_per_s},
                     "baro": {"sigma_bb_m": s.sigma_bb_m, "gamma_bb_per_s": s.gamma_bb_per_s},
-                    "gnss": {"sigma_z_m": s.sigma_z_m, "use_v_acc": False},
+                    # the synthetic GNSS error is white: no Gauss-Markov state
+                    "gnss": {"sigma_z_m": s.sigma_z_m, "use_v_acc": False, "gm_sigma_m": 0.0},
                     "rangefinder": {"sigma_m": s.sigma_rng_m, "scale_sigma_frac": 0.0}},
         "monitor": {"mode": mode, "features": features},
     })
