@@ -203,8 +203,10 @@ def test_a_2hz_telemetry_baro_is_slow_not_a_gap_and_late_gnss_is_used():
 
 def test_a_resent_baro_value_makes_no_epoch():
     """Telemetry at 10 Hz from a 5 Hz sensor: every other message repeats
-    the previous pressure exactly. Those are not new measurements."""
-    b = EpochBuilder(load_config(None))
+    the previous pressure exactly. Those are not new measurements (when the
+    rule is on: it is off by default, see FilterConfig.baro_repeat_max_s)."""
+    cfg = load_config(None)
+    b = EpochBuilder(cfg.model_copy(update={"filter": cfg.filter.model_copy(update={"baro_repeat_max_s": 1.0})}))
     items = []
     for k in range(100):
         t = 0.1 * k
