@@ -402,14 +402,15 @@ class ChannelBank:
             return math.nan, math.nan
         m = self.model
         T = ep.dt_s
-        g0, _ = self._g(T)
+        g0, _ = self._g(T, ep.dv_var_m2ps2)
         phi_u = math.exp(-m.gamma_bb_per_s * T)
         a = 1.0 - phi_u
         f = np.array([a, T, a, -0.5 * T * T, 0.0])
         y = ep.baro_m - phi_u * prev - ep.dp_m
         r = y - float(f @ self.x[c])
         q_dh = m.baro_bias_rw_m_per_sqrt_s**2 * T
-        S = float(f @ self.P[c] @ f) + g0 * g0 + m.sigma_bb_m**2 * (1.0 - phi_u * phi_u) + q_dh
+        S = (float(f @ self.P[c] @ f) + g0 * g0 + m.sigma_bb_m**2 * (1.0 - phi_u * phi_u) + q_dh
+             + (1.0 + phi_u * phi_u) * ep.baro_white_var_m2)
         return r, S
 
     def channel_state(self, c: int) -> ChannelState:
@@ -421,19 +422,23 @@ class ChannelBank:
         self.x[c] = x
         self.P[c] = 0.5 * (P + P.T)
 
-    def _g(self, T: float) -> tuple[float, float]:
+    def _g(self, T: float, dv_var_m2ps2: float = 0.0) -> tuple[float, float]:
+        """``Gamma``'s two non-zero entries; ``dv_var`` (the measured error of
+        the integrated IMU) adds to the acceleration noise: ``q^2 += dv_var / T^2``."""
         m = self.model
         if self._printed:
             q = m.sigma_a_mps2 * math.sqrt(2.0 * T / m.alpha_a_per_s)
         else:
             q = m.sigma_a_mps2 * math.sqrt(2.0 / (m.alpha_a_per_s * T))
+        if dv_var_m2ps2 > 0.0:
+            q = math.sqrt(q * q + dv_var_m2ps2 / (T * T))
         return -0.5 * T * T * q, -T * q
 
     def predicted_aux(self, c: int, ep: EpochInputs, aux) -> tuple[float, float]:
         """Innovation and its variance that ``aux`` would have in channel ``c``
         at epoch ``ep``, before it enters (for the chi-square gate)."""
         T = ep.dt_s
-        g0, g1 = self._g(T)
+        g0, g1 = self._g(T, ep.dv_var_m2ps2)
         phi_g, q_g = gnss_gauss_markov(T, self.model)
         age = aux.age_s
         gb = AUX_GB_ROW[c]
@@ -448,12 +453,12 @@ class ChannelBank:
         _check_finite(ep)
         m = self.model
         T = ep.dt_s
-        g0, g1 = self._g(T)
+        g0, g1 = self._g(T, ep.dv_var_m2ps2)
         q_dh = m.baro_bias_rw_m_per_sqrt_s**2 * T
         q_da = m.acc_bias_rw_mps2_per_sqrt_s**2 * T
         has_baro = ep.baro_m is not None
         phi_u = math.exp(-m.gamma_bb_per_s * T)
-        gamma_u2 = m.sigma_bb_m**2 * (1.0 - phi_u * phi_u)
+        gamma_u2 = m.sigma_bb_m**2 * (1.0 - phi_u * phi_u) + (1.0 + phi_u * phi_u) * ep.baro_white_var_m2
         phi_g, q_g = gnss_gauss_markov(T, m)
         if has_baro and ep.baro_restart:
             self.baro_prev[:] = math.nan

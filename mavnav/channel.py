@@ -136,10 +136,12 @@ def accel_noise_q(T: float, model: Model) -> float:
     return model.sigma_a_mps2 * math.sqrt(2.0 / (model.alpha_a_per_s * T))
 
 
-def process_noise(T: float, model: Model) -> np.ndarray:
+def process_noise(T: float, model: Model, dv_var_m2ps2: float = 0.0) -> np.ndarray:
     """``Bxx = Gamma Gamma^T`` plus the optional bias random walks: the 4x4
-    block of ``[H, Vz, dH, da]`` (:func:`state_process_noise` is the whole)."""
-    q = accel_noise_q(T, model)
+    block of ``[H, Vz, dH, da]`` (:func:`state_process_noise` is the whole).
+    ``dv_var`` (the measured error of the integrated IMU, :mod:`mavnav.epochs`)
+    adds to the acceleration noise in the same shape: ``q^2 += dv_var / T^2``."""
+    q = math.sqrt(accel_noise_q(T, model) ** 2 + dv_var_m2ps2 / (T * T))
     g = np.array([-0.5 * T * T * q, -T * q, 0.0, 0.0])
     B = np.outer(g, g)
     B[DH, DH] += model.baro_bias_rw_m_per_sqrt_s**2 * T
@@ -167,11 +169,11 @@ def state_transition(T: float, model: Model) -> np.ndarray:
     return Phi
 
 
-def state_process_noise(T: float, model: Model) -> np.ndarray:
+def state_process_noise(T: float, model: Model, dv_var_m2ps2: float = 0.0) -> np.ndarray:
     """``Bxx`` of the whole state: :func:`process_noise` and ``var(w_b)`` on ``b_g``
     (``w_b`` is independent of the INS noise)."""
     B = np.zeros((N_STATES, N_STATES))
-    B[:N_PAPER, :N_PAPER] = process_noise(T, model)
+    B[:N_PAPER, :N_PAPER] = process_noise(T, model, dv_var_m2ps2)
     B[GB, GB] = gnss_gauss_markov(T, model)[1]
     return B
 
@@ -205,6 +207,11 @@ class EpochInputs:
     gnss: Optional[AuxMeasurement] = None
     rng: Optional[AuxMeasurement] = None
     baro_restart: bool = False  # baro differencing restarts at this sample (after a gap)
+    # Measured input noise beyond the model (mavnav.epochs): the variance of
+    # dv_mps from IMU snapshots that miss the acceleration between them, and
+    # the baro's white noise.
+    dv_var_m2ps2: float = 0.0
+    baro_white_var_m2: float = 0.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -299,7 +306,7 @@ def measurement_rows(
         hs.append(H_BARO)
         phis.append(H_BARO @ Phi - phi_u * H_BARO)
         ys.append(inputs.baro_m - phi_u * state.baro_prev_m - float(H_BARO @ psi_w))
-        noise.append(gamma_u * gamma_u)
+        noise.append(gamma_u * gamma_u + (1.0 + phi_u * phi_u) * inputs.baro_white_var_m2)
     aux_name = _AUX_ROW[kind]
     aux = getattr(inputs, aux_name) if aux_name else None
     if aux is not None:
@@ -325,7 +332,7 @@ def step(
     _check_finite(inputs)
     T = inputs.dt_s
     Phi = state_transition(T, model)
-    Bxx = state_process_noise(T, model)
+    Bxx = state_process_noise(T, model, inputs.dv_var_m2ps2)
     psi_w = np.array([inputs.dp_m, inputs.dv_mps, 0.0, 0.0, 0.0])
     names, Phi_y, Bxy, Byy, y = measurement_rows(kind, state, inputs, model, Phi, Bxx, psi_w)
     res = correlated_step(state.x, state.P, Phi, psi_w, Bxx, Phi_y, Bxy, Byy, y)

@@ -14,7 +14,8 @@ from mavnav.channel import GB, N_PAPER, N_STATES, AuxMeasurement, EpochInputs, M
 from mavnav.config import config_from_dict
 
 
-def random_epochs(seed: int, n: int, p_baro=0.9, p_gnss=0.3, p_rng=0.5, p_restart=0.02):
+def random_epochs(seed: int, n: int, p_baro=0.9, p_gnss=0.3, p_rng=0.5, p_restart=0.02, measured=False):
+    """Random epochs; ``measured``: with the epoch builder's measured IMU and baro noise too."""
     rng = np.random.default_rng(seed)
     t = 0
     out = []
@@ -30,6 +31,8 @@ def random_epochs(seed: int, n: int, p_baro=0.9, p_gnss=0.3, p_rng=0.5, p_restar
             rng=AuxMeasurement(float(rng.normal(0, 3)), float(rng.uniform(0.05, 1)), float(rng.uniform(0, 0.05)))
             if rng.random() < p_rng else None,
             baro_restart=bool(has_b and rng.random() < p_restart),
+            dv_var_m2ps2=float(rng.uniform(0, 0.05)) if measured else 0.0,
+            baro_white_var_m2=float(rng.uniform(0, 0.2)) if measured and has_b else 0.0,
         ))
     return out
 
@@ -46,8 +49,9 @@ GM = pytest.mark.parametrize("gm_sigma_m", [3.0, 0.0], ids=["gm_on", "gm_off"])
 
 
 @GM
+@pytest.mark.parametrize("measured", [False, True], ids=["model_noise", "measured_noise"])
 @pytest.mark.parametrize("form", ["consistent", "printed"])
-def test_bank_equals_reference_channels(form, gm_sigma_m):
+def test_bank_equals_reference_channels(form, gm_sigma_m, measured):
     cfg = cfg_gm(gm_sigma_m)
     cfg = cfg.model_copy(update={"filter": cfg.filter.model_copy(update={"accel_noise_form": form})})
     model = Model.from_config(cfg)
@@ -55,7 +59,7 @@ def test_bank_equals_reference_channels(form, gm_sigma_m):
     bank = ChannelBank(model)
     bank.start(0, 0.5)
     ref = {k: initial_state(model, 0, 0.5) for k in CHANNELS}
-    for ep in random_epochs(7, 3000):
+    for ep in random_epochs(7, 3000, measured=measured):
         # the chi-square gates' predictions, before the step
         pred_aux = {c: bank.predicted_aux(c, ep, a) for c, a in ((0, ep.gnss), (1, ep.rng)) if a is not None}
         pred_baro = [bank.predicted_baro(c, ep) for c in range(len(CHANNELS))]
