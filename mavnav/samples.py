@@ -11,7 +11,7 @@ MAVLink field names never appear past this module's producers (the
 normaliser); consumers see only these types.
 
 Event types (``Reboot``, ``Gap``, ``LinkLost``, ``LinkRecovered``,
-``Rejected``, ``ReferenceSet``) travel in the same stream as the samples so
+``Rejected``, ``ReferenceSet``, ``Notice``) travel in the same stream as the samples so
 that one ordered fold sees everything.
 """
 
@@ -104,7 +104,10 @@ class ReferenceSet:
     kind: Literal["baro", "gnss"]
     value: float  # baro: reference pressure in Pa; gnss: reference altitude in m
     alt_ref_msl_m: Optional[float]  # the reference point's altitude MSL when known
-    origin: Literal["config", "home", "startup"]
+    # config: configured; home: HOME_POSITION; autopilot_home: the home in GLOBAL_POSITION_INT
+    # (alt - relative_alt); ekf_origin: GPS_GLOBAL_ORIGIN with LOCAL_POSITION_NED; startup:
+    # the first samples' mean (nothing from the autopilot in time)
+    origin: Literal["config", "home", "autopilot_home", "ekf_origin", "startup"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -154,6 +157,17 @@ class Rejected:
     sensor: Optional[str] = None  # the measurement kind refused ("range", "gnss", ...) when it was one
 
 
+@dataclass(frozen=True, slots=True)
+class Notice:
+    """Something the operator should be told about the input, in words: what the
+    source waits for, the vehicle chosen and the systems ignored. Not a
+    measurement and not a state change; sinks that speak to a person show it."""
+
+    recv_s: float
+    kind: str  # "waiting_reference", "waiting_heartbeat", "vehicle", "ignored", "stale"
+    text: str
+
+
 Measurement = Union[SpecificForceUp, BaroHeight, GnssHeight, RangeHeight, AutopilotHeight]
-Event = Union[ReferenceSet, Reboot, Gap, LinkLost, LinkRecovered, Rejected]
+Event = Union[ReferenceSet, Reboot, Gap, LinkLost, LinkRecovered, Rejected, Notice]
 Sample = Union[Measurement, Event]

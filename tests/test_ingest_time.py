@@ -203,7 +203,9 @@ def test_late_home_corrects_baro_reference_with_relative_alt(tmp_path):
     for k in range(40, 70):
         f.pressure(0.1 * k, pressure_at_height_pa(20.0, P_GROUND_PA))
     items, st = collect(f.close(), baro_reference={"source": "home"})
-    assert st.references["baro"].origin == "home"
+    # the home in GLOBAL_POSITION_INT (alt - relative_alt) fixes it before HOME_POSITION comes
+    assert st.references["baro"].origin == "autopilot_home"
+    assert st.references["baro"].alt_ref_msl_m == pytest.approx(500.0)
     assert st.references["baro"].value == pytest.approx(P_GROUND_PA, rel=2e-5)
     assert of(items, BaroHeight)[0].height_ref_m == pytest.approx(20.0, abs=0.1)
 

@@ -196,14 +196,24 @@ def test_autopilot_height_above_gnss_reference(tmp_path):
     ah = of(items, AutopilotHeight)
     assert [a.height_ref_m for a in ah] == pytest.approx([float(k) for k in range(5)])
     assert st.autopilot_reference == "gnss_reference"
-    # with no GNSS at all the autopilot's own home is the datum, after the wait
+    # with no GNSS at all the home in GLOBAL_POSITION_INT (alt - relative_alt) is the reference at once
     g = FlightLog(tmp_path / "ap2.tlog")
     g.heartbeat(0)
     for k in range(5):
         g.gpi(0.1 * k, 500.0 + k, rel_m=k + 2.0)
     items, st = collect(g.close())
     assert [a.height_ref_m for a in of(items, AutopilotHeight)] == pytest.approx([k + 2.0 for k in range(5)])
-    assert st.autopilot_reference == "autopilot_home"
+    assert st.autopilot_reference == "gnss_reference" and st.references["gnss"].origin == "autopilot_home"
+    assert st.references["gnss"].value == pytest.approx(498.0)
+    # no position (ArduPilot sends lat = lon = 0 without one): its own datum, relative_alt, after the wait
+    h = FlightLog(tmp_path / "ap3.tlog")
+    h.heartbeat(0)
+    for k in range(5):
+        h.put(h.mav.global_position_int_encode(h.ms(0.1 * k), 0, 0, (500 + k) * 1000, (k + 2) * 1000, 0, 0, 0, 0),
+              0.1 * k)
+    items, st = collect(h.close())
+    assert [a.height_ref_m for a in of(items, AutopilotHeight)] == pytest.approx([k + 2.0 for k in range(5)])
+    assert st.autopilot_reference == "autopilot_home" and "gnss" not in st.references
 
 
 def test_local_position_ned_is_up_from_z(tmp_path):

@@ -20,7 +20,7 @@ from ..pipeline import run as run_pipeline
 from ..sim.effects import FaultedSource
 from ..sim.faults import parse_faults
 from ..report import AlarmEvent, RunSummary
-from ..samples import LinkLost, LinkRecovered
+from ..samples import LinkLost, LinkRecovered, Notice, ReferenceSet
 from ..sinks.base import Sink
 from ..sinks.csv_sink import CsvSink
 from . import main
@@ -44,8 +44,24 @@ def common_options(f):
     return f
 
 
+REFERENCE_ORIGIN_WORDS = {
+    "config": "configured",
+    "home": "from HOME_POSITION",
+    "autopilot_home": "from the autopilot's home in GLOBAL_POSITION_INT",
+    "ekf_origin": "from the EKF origin (GPS_GLOBAL_ORIGIN, LOCAL_POSITION_NED)",
+    "startup": ("start-up mean: nothing from the autopilot in time, the vehicle is taken to have been "
+                "at the reference point when the data started"),
+}
+
+
+def _recv(recv_s: float) -> str:
+    return f"[recv {time.strftime('%H:%M:%S', time.localtime(recv_s))}]"
+
+
 class AlarmPrinter(Sink):
-    """Alarm transitions on stderr as they happen (the daemon's console)."""
+    """Alarm transitions on stderr as they happen (the daemon's console), and what
+    the input says a person should know: link loss, what it waits for, the
+    references it fixed."""
 
     name = "console"
 
@@ -55,12 +71,19 @@ class AlarmPrinter(Sink):
 
     def sample(self, s) -> None:
         # a live link's loss and recovery, as they happen (receive clock, not vehicle time)
-        if type(s) is LinkLost:
-            click.echo(f"[recv {time.strftime('%H:%M:%S', time.localtime(s.recv_s))}] input       "
-                       f"LINK LOST: no data from the vehicle for {s.silent_s:.1f} s", err=True)
-        elif type(s) is LinkRecovered:
-            click.echo(f"[recv {time.strftime('%H:%M:%S', time.localtime(s.recv_s))}] input       "
-                       f"link recovered after {s.outage_s:.1f} s", err=True)
+        ts = type(s)
+        if ts is LinkLost:
+            click.echo(f"{_recv(s.recv_s)} input       LINK LOST: no data from the vehicle for {s.silent_s:.1f} s",
+                       err=True)
+        elif ts is LinkRecovered:
+            click.echo(f"{_recv(s.recv_s)} input       link recovered after {s.outage_s:.1f} s", err=True)
+        elif ts is Notice:
+            click.echo(f"{_recv(s.recv_s)} input       {s.text}", err=True)
+        elif ts is ReferenceSet:
+            value = f"{s.value:.1f} Pa" if s.kind == "baro" else f"{s.value:.2f} m"
+            at = f", reference point {s.alt_ref_msl_m:.2f} m MSL" if s.alt_ref_msl_m is not None else ""
+            click.echo(f"[t={s.t_us * 1e-6:9.3f} s boot {s.boot}] input       height reference ({s.kind}): "
+                       f"{value}{at}, {REFERENCE_ORIGIN_WORDS.get(s.origin, s.origin)}", err=True)
 
 
 def print_summary(summary: RunSummary, title: str) -> None:

@@ -32,18 +32,26 @@ Decisions the issue left open (see also the module docs of :mod:`.clock`,
   while the barometer moved at least ``rangefinder_stuck_min_move_m``; the
   run's later readings are refused (``stuck``) until the value changes (the
   first ``rangefinder_stuck_s`` of a run cannot be told from a steady hover).
-* **Baro reference "home".** HOME_POSITION gives an altitude, not a
-  pressure. Home is where the vehicle was when the autopilot set it (at
-  arming, on the ground), so the reference pressure is the mean static
-  pressure over ``startup_window_s`` up to the first HOME_POSITION (or
-  after it, when no baro sample precedes it), each sample moved to home
-  height with the autopilot's own GLOBAL_POSITION_INT ``relative_alt`` when
-  one arrived within 1 s (so a late HOME_POSITION, sent mid-flight on a
-  ground station's request, still gives the home pressure).
-  ``alt_ref_msl_m`` is then the home altitude.
-* **GNSS reference "home".** HOME_POSITION ``altitude`` (MSL); for the
-  ellipsoid datum it is shifted by the geoid separation seen in
-  GPS_RAW_INT (``alt_ellipsoid - alt``).
+* **References "home": the autopilot's own, within a second of connecting.**
+  The first of these fixes the point both references are taken at (its
+  altitude MSL is ``alt_ref_msl_m``), on the ground or in flight:
+  HOME_POSITION (origin ``home``); GLOBAL_POSITION_INT, whose ``alt -
+  relative_alt`` is the home altitude (``autopilot_home``; only with a
+  position, ``lat``/``lon`` not both zero, and with home set: ArduPilot
+  reports ``relative_alt == alt`` before it is); GPS_GLOBAL_ORIGIN with
+  LOCAL_POSITION_NED (``ekf_origin``, heights ``-z`` above it). The GNSS
+  reference is that altitude (for the ellipsoid datum shifted by the geoid
+  separation seen in GPS_RAW_INT, ``alt_ellipsoid - alt``). The baro
+  reference pressure is the one that makes the baro height equal the
+  autopilot's height above that point (``relative_alt``, or ``-z``) at the
+  same moment (ISA), averaged over the first second (at most
+  ``startup_window_s``) of baro samples with such a height within 1 s
+  (moved along by the autopilot's vertical speed). A HOME_POSITION with no
+  such height (no position stream) takes the pressure over
+  ``startup_window_s`` up to it as the pressure at home. Held samples wait
+  at most ``home_wait_s``; after 1 s a :class:`~mavnav.samples.Notice`
+  says what they wait for, and with nothing in time the reference is the
+  start-up mean.
 * **Autopilot height.** GLOBAL_POSITION_INT ``alt`` (MSL) minus the GNSS
   reference in MSL, i.e. above the same point as :class:`GnssHeight`;
   LOCAL_POSITION_NED ``-z`` plus the EKF origin altitude (GPS_GLOBAL_ORIGIN)
@@ -59,6 +67,7 @@ Decisions the issue left open (see also the module docs of :mod:`.clock`,
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections import deque
 from typing import Deque, List, Optional
@@ -74,6 +83,7 @@ from ..samples import (
     LinkLost,
     LinkRecovered,
     RangeHeight,
+    Notice,
     Reboot,
     ReferenceSet,
     Rejected,
@@ -97,7 +107,11 @@ DISTANCE_SENSOR_QUALITY_INVALID = 1
 UINT32_MAX = 0xFFFFFFFF
 MAX_SPECIFIC_FORCE_MPS2 = 50 * G0_MPS2  # beyond any airframe IMU range
 MAX_PRESSURE_PA = 2.0e7  # 200 bar: deeper than any ROV depth sensor reads
-REL_ALT_MAX_AGE_US = 1_000_000
+REL_ALT_MAX_AGE_US = 1_000_000  # a baro sample pairs with the autopilot's height this close in time
+ANCHOR_WINDOW_US = 1_000_000  # baro samples averaged for a reference from the autopilot (capped by startup_window_s)
+HOME_UNSET_MM = 50  # GLOBAL_POSITION_INT alt - relative_alt below this: ArduPilot's home not yet set
+WAIT_NOTICE_US = 1_000_000  # held this long for a reference: say what for
+REL_HIST_MAX = 8192
 
 IMU_RANKING = ("HIGHRES_IMU", "RAW_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3")
 RANGE_RANKING = ("DISTANCE_SENSOR", "RANGEFINDER")
@@ -142,17 +156,21 @@ class Normaliser:
         self.range_sel = SourceSelector(RANGE_RANKING, cfg.range_source, cfg.source_select_s)
         self.ap_sel = SourceSelector(AUTOPILOT_RANKING, cfg.autopilot_source, cfg.source_select_s)
         self.baro_ref = ReferenceResolver(
-            "baro", cfg.baro_reference, _item_t, _mean_pressure, self._baro_home_value
+            "baro", cfg.baro_reference, _item_t, _mean_pressure, self._baro_anchored
         )
         self.gnss_ref = ReferenceResolver(
-            "gnss", cfg.gnss_reference, _item_t, _mean_alt, self._gnss_home_value
+            "gnss", cfg.gnss_reference, _item_t, _mean_alt, self._gnss_anchored
         )
+        self._anchor: Optional[tuple] = None  # (origin, alt_msl_m, height kind): the autopilot's reference point
+        self._home_pos: Optional[tuple] = None  # (t_us, boot, alt_msl_m) of the first HOME_POSITION
+        # the autopilot's height above its home / EKF origin, this boot, while the baro reference is open
+        self._rel_hist = {"GLOBAL_POSITION_INT": [], "LOCAL_POSITION_NED": []}  # [(t_us, height_m, vel_up_mps)]
+        self._wait_said: set = set()
         self._cand: Optional[tuple] = None
         self._followers: List[tuple] = []
         self._last_recv: Optional[float] = None
         self._link_lost = False
         self._geoid_sep_m: Optional[float] = None
-        self._rel_alt: Optional[tuple] = None  # (t_us, boot, relative_alt_m)
         self._ekf_origin_msl_m: Optional[float] = None
         self._ap_held: Deque[tuple] = deque()
         self._ap_mode: Optional[str] = None
@@ -348,7 +366,8 @@ class Normaliser:
         self.att.reset()
         self.streams.reset()
         self._run = None
-        self._rel_alt = None
+        for hist in self._rel_hist.values():
+            hist.clear()
         self.stats.reboots += 1
         self._emit(Reboot(t_us=t_us, recv_s=recv_s, boot=boot, last_t_us=last if last is not None else 0))
 
@@ -466,26 +485,104 @@ class Normaliser:
         if run is not None:
             run[2] = p_pa if run[2] is None else min(run[2], p_pa)
             run[3] = p_pa if run[3] is None else max(run[3], p_pa)
-        rel = self._rel_alt
-        rel_m = rel[2] if rel is not None and abs(rel[0] - t_us) <= REL_ALT_MAX_AGE_US else None
-        item = (t_us, recv_s, self.clock.boot, p_pa, rel_m)
+        item = (t_us, recv_s, self.clock.boot, p_pa)
         origin, items = self.baro_ref.push(item)
         self._baro_released(origin, items)
+        if self.baro_ref.value is None:
+            self._say_waiting(self.baro_ref, recv_s)
 
-    def _baro_home_value(self, home, before, after) -> Optional[float]:
-        window = before
-        if not window:
-            if not after:
-                return None
-            t0 = after[0][0]
-            if after[-1][0] - t0 < self.baro_ref.window_us:
-                return None
-            window = [it for it in after if it[0] - t0 <= self.baro_ref.window_us]
+    def _baro_anchored(self, held, final):
+        """The pressure at the autopilot's reference point: each baro sample moved
+        down by the autopilot's height above that point at the same moment."""
+        a = self._anchor
+        if a is None or not held:
+            return None
+        origin, _alt, rel_kind = a
+        win = min(self.baro_ref.window_us, ANCHOR_WINDOW_US)
         vals = []
-        for _t, _r, _b, p, rel_m in window:
-            # the pressure at home height: p was measured rel_m above home
-            vals.append(p / pressure_at_height_pa(rel_m, 1.0) if rel_m is not None else p)
-        return sum(vals) / len(vals)
+        t0 = None
+        complete = final
+        for t_us, _r, boot, p in held:
+            if t0 is not None and (t_us - t0 >= win or boot != b0):
+                complete = True
+                break
+            rel = self._rel_at(t_us, boot, rel_kind)
+            if rel is None:
+                continue
+            if t0 is None:
+                t0, b0 = t_us, boot
+            vals.append(p / pressure_at_height_pa(rel, 1.0))  # p was measured rel above the point
+        if vals:
+            return (sum(vals) / len(vals), origin) if complete else None
+        if origin == "home" and self._home_pos is not None:
+            # HOME_POSITION and no height above it: home is where the vehicle was when it was set
+            v = self._baro_at_home(held, final)
+            if v is not None:
+                return v, origin
+        return None
+
+    def _baro_at_home(self, held, final) -> Optional[float]:
+        """Only once no height above home came for ``startup_window_s`` after HOME_POSITION
+        (a link without GLOBAL_POSITION_INT): the pressure around it."""
+        th, bh, _ = self._home_pos
+        w = self.baro_ref.window_us
+        after = [it for it in held if (it[2] == bh and it[0] > th) or it[2] > bh]
+        if not final and (not after or after[-1][2] == bh and after[-1][0] - th < w):
+            return None  # a GLOBAL_POSITION_INT may still come
+        before = [it for it in held if it[2] == bh and th - w <= it[0] <= th]
+        if before:
+            return _mean_pressure(before)
+        if not after:
+            return None
+        t0 = after[0][0]
+        return _mean_pressure([it for it in after if it[0] - t0 <= w and it[2] == after[0][2]])
+
+    def _rel_at(self, t_us: int, boot: int, kind: str) -> Optional[float]:
+        """The autopilot's height above its reference point at ``t_us`` (None: none within 1 s)."""
+        if boot != self.clock.boot:
+            return None
+        hist = self._rel_hist[kind]
+        i = bisect.bisect_left(hist, (t_us,))
+        best = None
+        for j in (i - 1, i):
+            if 0 <= j < len(hist):
+                d = abs(hist[j][0] - t_us)
+                if d <= REL_ALT_MAX_AGE_US and (best is None or d < best[0]):
+                    best = (d, hist[j])
+        if best is None:
+            return None
+        tr, rel_m, vel_up = best[1]
+        return rel_m + vel_up * (t_us - tr) * 1e-6 if _finite(vel_up) else rel_m
+
+    def _note_rel(self, kind: str, t_us: int, rel_m: float, vel_up: float) -> None:
+        if self.baro_ref.value is not None or not _finite(rel_m):
+            return
+        hist = self._rel_hist[kind]
+        if len(hist) >= REL_HIST_MAX:
+            del hist[: REL_HIST_MAX // 2]
+        bisect.insort(hist, (t_us, rel_m, vel_up))
+
+    def _set_anchor(self, origin: str, alt_msl_m: float, rel_kind: str) -> None:
+        """The autopilot's reference point is known: fix what waits for it (first one wins)."""
+        if self._anchor is not None:
+            return
+        self._anchor = (origin, alt_msl_m, rel_kind)
+        self._retry_references()
+
+    def _retry_references(self) -> None:
+        if self.baro_ref.value is None:
+            self._baro_released(*self.baro_ref.retry())
+        if self.gnss_ref.value is None:
+            self._gnss_released(*self.gnss_ref.retry())
+
+    def _say_waiting(self, ref: ReferenceResolver, recv_s: float) -> None:
+        if ref.kind in self._wait_said or ref.cfg.source != "home" or ref.held_span_us() < WAIT_NOTICE_US:
+            return
+        self._wait_said.add(ref.kind)
+        what = "baro" if ref.kind == "baro" else "GNSS"
+        self._emit(Notice(recv_s, "waiting_reference",
+                          f"waiting for HOME_POSITION or GLOBAL_POSITION_INT to fix the {what} height reference "
+                          f"(at most {ref.cfg.home_wait_s:g} s, then the start-up mean)"))
 
     def _baro_released(self, origin, items) -> None:
         if not items and origin is None:
@@ -493,10 +590,10 @@ class Normaliser:
         p_ref = self.baro_ref.value
         if origin is not None:
             first = items[0] if items else None
-            alt = self.baro_ref.home[2] if origin == "home" and self.baro_ref.home else None
+            alt = self._anchor[1] if origin in ANCHORED and self._anchor is not None else None
             self._reference_event("baro", p_ref, alt, origin, first)
         inst = self.cfg.baro_instance
-        for t_us, recv_s, boot, p_pa, _rel in items:
+        for t_us, recv_s, boot, p_pa in items:
             h = height_from_pressure_m(p_pa, p_ref)
             self._guarded("baro", t_us, recv_s, boot, BaroHeight(t_us, recv_s, boot, h, p_pa, inst))
 
@@ -535,14 +632,19 @@ class Normaliser:
         item = (t_us, recv_s, self.clock.boot, alt_m, sigma_m, fix, sats)
         origin, items = self.gnss_ref.push(item)
         self._gnss_released(origin, items)
+        if self.gnss_ref.value is None:
+            self._say_waiting(self.gnss_ref, recv_s)
 
-    def _gnss_home_value(self, home, before, after) -> Optional[float]:
-        alt_msl = home[2]
+    def _gnss_anchored(self, held, final):
+        a = self._anchor
+        if a is None:
+            return None
+        origin, alt_msl, _ = a
         if self.cfg.gnss_altitude == "msl":
-            return alt_msl
+            return alt_msl, origin
         if self._geoid_sep_m is None:
             return None
-        return alt_msl + self._geoid_sep_m
+        return alt_msl + self._geoid_sep_m, origin
 
     def gnss_ref_msl_m(self) -> Optional[float]:
         v = self.gnss_ref.value
@@ -565,17 +667,17 @@ class Normaliser:
         alt_m = f["altitude"] / 1000.0  # mm MSL
         if not _finite(alt_m):
             return
-        t_us = self.clock.last_t_us if self.clock.last_t_us is not None else 0
-        boot = self.clock.boot
-        self.baro_ref.set_home(t_us, boot, alt_m)
-        self.gnss_ref.set_home(t_us, boot, alt_m)
-        if self.baro_ref.value is None and self.baro_ref.held:
-            self._baro_released(*self.baro_ref._try(final=False))
-        if self.gnss_ref.value is None and self.gnss_ref.held:
-            self._gnss_released(*self.gnss_ref._try(final=False))
+        if self._home_pos is None:
+            t_us = self.clock.last_t_us if self.clock.last_t_us is not None else 0
+            self._home_pos = (t_us, self.clock.boot, alt_m)
+        self._set_anchor("home", alt_m, "GLOBAL_POSITION_INT")
 
     def _reference_event(self, kind, value, alt_msl, origin, item) -> None:
-        t_us, recv_s, boot = (item[0], item[1], item[2]) if item else (0, 0.0, self.clock.boot)
+        if item:
+            t_us, recv_s, boot = item[0], item[1], item[2]
+        else:  # fixed before any sample needed it (from the autopilot's home)
+            t_us = self.clock.last_t_us if self.clock.last_t_us is not None else 0
+            recv_s, boot = (self._last_recv or 0.0), self.clock.boot
         self.stats.references[kind] = ReferenceRecord(value, origin, alt_msl)
         self._emit(ReferenceSet(t_us=t_us, recv_s=recv_s, boot=boot, kind=kind, value=value, alt_ref_msl_m=alt_msl, origin=origin))
 
@@ -661,10 +763,19 @@ class Normaliser:
 
     def _global_position_int_at(self, f, t_us, recv_s) -> None:
         rel_m = f["relative_alt"] / 1000.0  # mm above home
-        self._rel_alt = (t_us, self.clock.boot, rel_m)
         vz = f["vz"]
-        item = (t_us, recv_s, self.clock.boot, f["alt"] / 1000.0, rel_m,
-                -vz / 100.0 if _finite(vz) else math.nan)  # alt: mm MSL; vz: cm/s down
+        vel_up = -vz / 100.0 if _finite(vz) else math.nan  # cm/s down
+        # home is known: a position (ArduPilot sends lat = lon = 0 without one) and home set
+        # (before arming old ArduPilot reports relative_alt == alt: home at 0)
+        if (f["lat"] != 0 or f["lon"] != 0) and abs(f["alt"] - f["relative_alt"]) >= HOME_UNSET_MM:
+            self._note_rel("GLOBAL_POSITION_INT", t_us, rel_m, vel_up)
+            if self._anchor is None:
+                self._set_anchor("autopilot_home", (f["alt"] - f["relative_alt"]) / 1000.0, "GLOBAL_POSITION_INT")
+            elif self.baro_ref.value is None and self.baro_ref.held:
+                self._baro_released(*self.baro_ref.retry())
+        # alt: mm MSL, none without a position (ArduPilot then sends 0 or its uncorrected baro altitude)
+        alt_msl = f["alt"] / 1000.0 if f["lat"] != 0 or f["lon"] != 0 else None
+        item = (t_us, recv_s, self.clock.boot, alt_msl, rel_m, vel_up)
         for it in self.ap_sel.offer("GLOBAL_POSITION_INT", item):
             self._ap_selected(it)
 
@@ -678,12 +789,23 @@ class Normaliser:
     def _local_position_ned_at(self, f, t_us, recv_s) -> None:
         up_m = -f["z"]  # z is down, m, above the EKF origin
         vz = f["vz"]
-        item = (t_us, recv_s, self.clock.boot, None, up_m, -vz if _finite(vz) else math.nan)
+        vel_up = -vz if _finite(vz) else math.nan
+        self._note_rel("LOCAL_POSITION_NED", t_us, up_m, vel_up)
+        if self._anchor is None and self._ekf_origin_msl_m is not None:
+            self._set_anchor("ekf_origin", self._ekf_origin_msl_m, "LOCAL_POSITION_NED")
+        elif self._anchor is not None and self.baro_ref.value is None and self.baro_ref.held:
+            self._baro_released(*self.baro_ref.retry())
+        item = (t_us, recv_s, self.clock.boot, None, up_m, vel_up)
         for it in self.ap_sel.offer("LOCAL_POSITION_NED", item):
             self._ap_selected(it)
 
     def _gps_global_origin(self, f, recv_s, compid) -> None:
-        self._ekf_origin_msl_m = f["altitude"] / 1000.0  # mm MSL
+        alt_m = f["altitude"] / 1000.0  # mm MSL
+        if not _finite(alt_m):
+            return
+        self._ekf_origin_msl_m = alt_m
+        if self._anchor is None and self._rel_hist["LOCAL_POSITION_NED"]:
+            self._set_anchor("ekf_origin", alt_m, "LOCAL_POSITION_NED")
 
     def _note(self, sel, name: str, then) -> None:
         if sel.chosen is None:
@@ -714,6 +836,9 @@ class Normaliser:
             t_us, recv_s, boot, alt_msl, local_up, vel_up = held.popleft()
             if self._ap_mode == "gnss_reference":
                 if src == "GLOBAL_POSITION_INT":
+                    if alt_msl is None:
+                        self.stats.filtered["autopilot_no_position"] += 1
+                        continue
                     h = alt_msl - ref_msl
                 else:
                     h = local_up + self._ekf_origin_msl_m - ref_msl
@@ -759,6 +884,9 @@ class Normaliser:
         st.range_source = self.range_sel.chosen
         st.autopilot_source = self.ap_sel.chosen
         st.duration_s = self.clock.total_duration_us / 1e6
+
+
+ANCHORED = ("home", "autopilot_home", "ekf_origin")
 
 
 def _item_t(item):

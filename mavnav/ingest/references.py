@@ -9,10 +9,14 @@ order, until it is known, then released together with one
 * ``startup``: the mean over the first ``startup_window_s`` of vehicle
   time of the items themselves (the vehicle is assumed still at the
   reference point when the stream starts).
-* ``home``: from HOME_POSITION (``home_value``). If no HOME_POSITION arrives
-  within ``home_wait_s`` of the first held item (or before the end of the
-  stream), the start-up estimate is used instead and the event says
-  ``startup``. This bounds what is held.
+* source ``home``: the place the autopilot itself calls home, from what
+  it streams anyway, so that the reference is known within about a second
+  of connecting, on the ground or in flight (the normaliser's ``anchored``
+  callback decides; origins ``home``, ``autopilot_home``, ``ekf_origin``).
+  If nothing of the kind arrives within ``home_wait_s`` of the first held
+  item (or before the end of the stream, or a reboot), the start-up
+  estimate is used instead and the event says ``startup``. This bounds
+  what is held.
 
 The reference is fixed once per source and kept across reboots (it is a
 place, not a state of the vehicle).
@@ -25,10 +29,13 @@ from typing import Callable, Deque, List, Optional, Sequence, Tuple
 
 from ..config import ReferenceConfig
 
+# anchored(held items, final) -> (value, origin) once the autopilot's reference is known, else None
+Anchored = Callable[[Sequence[object], bool], Optional[Tuple[float, str]]]
+
 
 class ReferenceResolver:
     """``item_t(item) -> (t_us, boot)``; ``startup_value(items) -> float``;
-    ``home_value(home, items_before, items_after) -> float | None``."""
+    ``anchored(held, final) -> (value, origin) | None``."""
 
     def __init__(
         self,
@@ -36,7 +43,7 @@ class ReferenceResolver:
         cfg: ReferenceConfig,
         item_t: Callable[[object], Tuple[int, int]],
         startup_value: Callable[[Sequence[object]], float],
-        home_value: Callable[[tuple, Sequence[object], Sequence[object]], Optional[float]],
+        anchored: Anchored,
     ):
         self.kind = kind
         self.cfg = cfg
@@ -44,15 +51,10 @@ class ReferenceResolver:
         self.wait_us = int(cfg.home_wait_s * 1e6)
         self._item_t = item_t
         self._startup_value = startup_value
-        self._home_value = home_value
+        self._anchored = anchored
         self.value: Optional[float] = None
         self.origin: Optional[str] = None
-        self.home: Optional[tuple] = None  # (t_us, boot, alt_msl_m)
         self.held: Deque[object] = deque()
-
-    def set_home(self, t_us: int, boot: int, alt_msl_m: float) -> None:
-        if self.home is None:
-            self.home = (t_us, boot, alt_msl_m)
 
     def push(self, item) -> Tuple[Optional[str], List[object]]:
         """Returns ``(origin if the reference was just fixed else None, items released)``."""
@@ -61,10 +63,25 @@ class ReferenceResolver:
         self.held.append(item)
         return self._try(final=False)
 
+    def retry(self) -> Tuple[Optional[str], List[object]]:
+        """Something the reference may be taken from arrived (e.g. the autopilot's
+        home): fix it now if it can be, even with nothing held yet."""
+        if self.value is not None or self.cfg.source != "home":
+            return None, []
+        return self._try(final=False)
+
     def finish(self) -> Tuple[Optional[str], List[object]]:
         if self.value is not None or not self.held:
             return None, []
         return self._try(final=True)
+
+    def held_span_us(self) -> int:
+        """Vehicle time the held items span (0 when nothing is held)."""
+        if not self.held:
+            return 0
+        t0, b0 = self._item_t(self.held[0])
+        t1, b1 = self._item_t(self.held[-1])
+        return t1 - t0 if b1 == b0 else self.wait_us
 
     def _release(self, value: float, origin: str) -> Tuple[Optional[str], List[object]]:
         self.value = value
@@ -91,27 +108,15 @@ class ReferenceResolver:
         if src == "config":
             return self._release(float(self.cfg.value), "config")
         if src == "home":
-            if self.home is not None:
-                th, bh, _ = self.home
-                before, after = [], []
-                for it in self.held:
-                    t, b = self._item_t(it)
-                    if b == bh and th - self.window_us <= t <= th:
-                        before.append(it)
-                    elif (b == bh and t > th) or b > bh:
-                        after.append(it)
-                v = self._home_value(self.home, before, after)
-                if v is None and final:
-                    v = self._home_value(self.home, before, after or list(self.held))
-                if v is not None:
-                    return self._release(v, "home")
-                if not final:
-                    return None, []
-            else:
-                t0, b0 = self._item_t(self.held[0])
-                t1, b1 = self._item_t(self.held[-1])
-                if not final and b1 == b0 and t1 - t0 < self.wait_us:
-                    return None, []
+            got = self._anchored(list(self.held), final)
+            if got is not None:
+                return self._release(got[0], got[1])
+            if not self.held:
+                return None, []
+            if not final and self.held_span_us() < self.wait_us:
+                return None, []
+        if not self.held:
+            return None, []
         window = self._startup_window(final)
         if window is None:
             return None, []
