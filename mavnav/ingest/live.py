@@ -6,10 +6,24 @@ receives go through :class:`~.stream_reader.StreamReader` and the same
 :class:`~.normaliser.Normaliser` as a tlog. The wall clock (``clock``,
 injectable) is read only here: it stamps each received chunk and drives the
 link-loss timer. The source never transmits.
+
+**No input lost to a busy consumer.** A receive thread drains the port as
+data arrives, stamps each chunk with its receive time and queues it; the
+iterator parses and normalises from the queue. When the monitor or a sink
+stalls (the filter bank compiled at the first epoch, a viewer starting, a
+burst of held samples released), the datagrams wait in the queue instead of
+overflowing the socket's receive buffer, which is enlarged as well
+(``SO_RCVBUF``, up to :data:`RCVBUF_BYTES`) for the moments the thread
+itself is not scheduled. The queue is bounded (``max_backlog_bytes``): a
+consumer that stays slower than the link drops what does not fit, counted
+in ``stats.dropped_chunks``. The link-loss timer runs only when the queue is
+empty, so a backlog is never taken for silence.
 """
 
 from __future__ import annotations
 
+import queue
+import socket
 import threading
 import time
 from typing import Callable, Iterator, Optional
@@ -24,6 +38,26 @@ from .stream_reader import StreamReader
 from .tlog import fill_message_stats
 
 _RECV_BYTES = 65536
+RCVBUF_BYTES = 8 << 20  # 8 MiB: ~10 s of a busy 4x link in the kernel
+MAX_BACKLOG_BYTES = 256 << 20
+
+
+def _enlarge_rcvbuf(conn, nbytes: int = RCVBUF_BYTES) -> Optional[int]:
+    """Ask for a large receive buffer on a socket link (the kernel may cap it); its size, or None."""
+    sock = getattr(conn, "port", None)
+    if not isinstance(sock, socket.socket):
+        return None
+    force = getattr(socket, "SO_RCVBUFFORCE", None)  # beyond rmem_max when privileged
+    for opt in ((force,) if force is not None else ()) + (socket.SO_RCVBUF,):
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, opt, nbytes)
+            break
+        except OSError:
+            continue
+    try:
+        return sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+    except OSError:
+        return None
 
 
 def _split_baud(connection: str, baud: Optional[int]):
@@ -39,7 +73,8 @@ class LiveSource:
     """Iterate samples and events from a live link until :meth:`close` (from any thread).
 
     ``poll_s`` bounds how long one wait for data lasts, hence how promptly a
-    close is noticed and a link loss is reported.
+    close is noticed and a link loss is reported. ``max_backlog_bytes``
+    bounds what waits between the receive thread and the consumer.
     """
 
     def __init__(
@@ -51,6 +86,7 @@ class LiveSource:
         clock: Callable[[], float] = time.time,
         baud: Optional[int] = None,
         poll_s: float = 0.05,
+        max_backlog_bytes: int = MAX_BACKLOG_BYTES,
     ):
         self.connection = connection
         self.config = config if config is not None else IngestConfig()
@@ -69,6 +105,15 @@ class LiveSource:
             raise InputError(f"{connection}: cannot open ({exc})") from None
         self._reader = StreamReader(WANTED)
         self._norm = Normaliser(self.config, sysid, self.stats)
+        self.stats.format = "live"
+        self.rcvbuf_bytes = _enlarge_rcvbuf(self._conn)
+        self.max_backlog_bytes = max_backlog_bytes
+        # queue.Queue, not SimpleQueue: a SimpleQueue.get(timeout) interrupted by the SIGTERM
+        # handler (which closes this source) was seen never to return (CPython 3.11.7)
+        self._queue: "queue.Queue[tuple]" = queue.Queue()
+        self._backlog = 0  # bytes queued and not yet parsed
+        self._backlog_lock = threading.Lock()
+        self._receiver: Optional[threading.Thread] = None
 
     @property
     def mav(self):
@@ -88,10 +133,48 @@ class LiveSource:
         """Stop iterating (promptly, from any thread) and release the port."""
         if not self._closed.is_set():
             self._closed.set()
+            th = self._receiver
+            if th is not None and th is not threading.current_thread():
+                th.join(max(1.0, 4 * self.poll_s))  # out of select() before the port closes
             try:
                 self._conn.close()
             except Exception:
                 pass
+
+    @property
+    def backlog_bytes(self) -> int:
+        """Received and not yet parsed (the receive thread is ahead of the consumer by this much)."""
+        return self._backlog
+
+    def _receive(self) -> None:
+        """The receive thread: drain the port into the queue until closed."""
+        conn, q, closed, clock = self._conn, self._queue, self._closed, self.clock
+        while not closed.is_set():
+            try:
+                if not conn.select(self.poll_s):
+                    continue
+                while not closed.is_set():  # everything the port holds now
+                    data = conn.recv(_RECV_BYTES)
+                    if not data:
+                        break
+                    if not isinstance(data, (bytes, bytearray)):
+                        data = bytes(data, "latin-1")
+                    now = clock()
+                    with self._backlog_lock:
+                        if self._backlog + len(data) > self.max_backlog_bytes:
+                            self.stats.dropped_chunks += 1
+                            continue
+                        self._backlog += len(data)
+                    q.put((now, data))
+            except Exception:
+                if closed.is_set():
+                    break
+                time.sleep(self.poll_s)  # a transient socket or serial error: keep listening
+
+    def _start_receiver(self) -> None:
+        if self._receiver is None and not self._closed.is_set():
+            self._receiver = threading.Thread(target=self._receive, name="mavnav-receive", daemon=True)
+            self._receiver.start()
 
     def __enter__(self) -> "LiveSource":
         return self
@@ -102,25 +185,24 @@ class LiveSource:
     def __iter__(self) -> Iterator[object]:
         norm, reader = self._norm, self._reader
         out = norm.out
-        conn = self._conn
+        q = self._queue
         closed = self._closed
+        self._start_receiver()
         while not closed.is_set():
             try:
-                ready = conn.select(self.poll_s)
-                data = conn.recv(_RECV_BYTES) if ready else b""
-            except Exception:
-                if closed.is_set():
-                    break
-                data = b""  # a transient socket or serial error: keep listening
-                time.sleep(self.poll_s)
-            now = self.clock()
+                recv_s, data = q.get(timeout=self.poll_s)
+            except queue.Empty:
+                data = None
             if data:
-                for item in reader.feed(data if isinstance(data, (bytes, bytearray)) else bytes(data, "latin-1"), now):
+                with self._backlog_lock:
+                    self._backlog -= len(data)
+                for item in reader.feed(data, recv_s):
                     if type(item) is tuple:
                         norm.feed(*item)
                     else:
                         norm.problem(item)
-            norm.tick(now)
+            if q.empty():  # caught up: a silence now is a silence on the link, not a backlog
+                norm.tick(self.clock())
             if out:
                 yield from out
                 out.clear()

@@ -68,6 +68,8 @@ class IngestStats:
     bytes_read: int = 0
     garbage_bytes: int = 0
     link_losses: int = 0
+    seq_missing: int = 0  # live: frames the MAVLink sequence numbers say never arrived
+    dropped_chunks: int = 0  # live: received chunks dropped because the consumer fell too far behind
     format: str = "tlog"  # "tlog", "live", "dataflash", "ulog"
     firmware: str = ""  # onboard logs: e.g. "ArduCopter V4.1.3", "PX4 v1.14.0"
     vehicle_kind: str = ""  # onboard logs: "copter", "plane", "rover", "sub", ...

@@ -17,6 +17,11 @@ otherwise its start byte is garbage. A start byte whose frame
 would need more bytes than have arrived waits for them, unless a complete
 frame with a good CRC already follows it in the buffer, which shows it was
 garbage (so a noise byte never holds up the frames behind it).
+
+``seq_missing`` counts the frames the MAVLink sequence numbers say never
+arrived (per system and component, forward gaps below 128; a frame behind
+its predecessor is late, not a gap): what the link or the receive buffer
+lost.
 """
 
 from __future__ import annotations
@@ -83,6 +88,8 @@ class StreamReader:
         self._buf = b""
         self._garbage_run = 0
         self._in_step = False  # the buffer starts where the last good frame ended
+        self.seq_missing = 0
+        self._seq = {}  # (sysid, compid) -> last sequence number
 
     def feed(self, data: bytes, recv_s: float) -> List[Item]:
         """Parse what ``data`` completes; keep an unfinished frame for the next call."""
@@ -128,6 +135,12 @@ class StreamReader:
                 self._garbage_run = 0
             self.frames += 1
             self.counts[(sysid, msgid)] += 1
+            seq = buf[pos + 4] if b == wire.STX_V2 else buf[pos + 2]
+            last = self._seq.get((sysid, compid))
+            gap = 0 if last is None else (seq - last - 1) & 0xFF
+            if gap < 128:
+                self.seq_missing += gap
+                self._seq[(sysid, compid)] = seq
             if st == wire.UNKNOWN_ID:
                 self.unknown_frames += 1
                 out.append(Rejected(recv_s, "unknown_message", f"msgid {msgid}"))

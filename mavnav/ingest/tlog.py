@@ -69,6 +69,7 @@ def fill_message_stats(stats: IngestStats, reader, sysid: Optional[int]) -> None
     stats.frames = reader.frames
     stats.bytes_read = reader.bytes_read
     stats.garbage_bytes = reader.garbage_bytes
+    stats.seq_missing = getattr(reader, "seq_missing", 0)
 
 
 def expand_tlog_paths(paths: Union[PathLike, Iterable[PathLike]]) -> List[Path]:
