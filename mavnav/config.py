@@ -57,7 +57,9 @@ class GnssConfig(_Section):
     flights. gm_sigma_m 0 turns the Gauss-Markov state off (paper mode)."""
 
     sigma_z_m: float = Field(2.0, gt=0)  # vertical noise when v_acc is not used
-    gm_sigma_m: float = Field(3.0, ge=0)  # RMS of the Gauss-Markov error
+    # Off (0) by default until a GNSS drift test exists: at 3 m / 300 s the
+    # state absorbs a 0.5 m/s ramp and the SITL ramp alarm comes 24 s late.
+    gm_sigma_m: float = Field(0.0, ge=0)  # RMS of the Gauss-Markov error
     gm_tau_s: float = Field(300.0, gt=0)  # its correlation time
     use_v_acc: bool = True  # take sigma from the receiver's v_acc when it reports one
     v_acc_floor_m: float = Field(0.3, ge=0)  # never trust a receiver more than this
