@@ -190,3 +190,23 @@ def test_live_midflight_connect_over_udp(tmp_path, capsys):
     fused = [r.height_fused_m for r in sink.rows if r.height_fused_m == r.height_fused_m]
     assert fused and fused[0] == pytest.approx(UP_M, abs=1.5)
     assert [r.baro_height_ref_m for r in sink.rows][0] == pytest.approx(UP_M, abs=0.1)
+
+
+def test_first_imu_first_so_a_quick_reference_loses_no_epoch():
+    """A reference known at once releases the baro before the IMU (held for its source
+    choice): measurements wait for the first IMU sample of the boot, then join in time
+    order, so the epochs start with the data (ArduPilot SITL connected 30 m up)."""
+    from pathlib import Path
+
+    from mavnav.ingest import TlogSource
+    from mavnav.monitor import Monitor
+
+    cfg = Config()
+    mon = Monitor(cfg)
+    n = 0
+    for s in TlogSource(Path(__file__).resolve().parents[1] / "sitl_logs" / "ardupilot_rng_dropout.tlog", cfg.ingest):
+        n += len(mon.push(s))
+    c = mon.builder.counters
+    # only what precedes the first IMU sample in vehicle time (one baro, one GNSS, one range)
+    assert c["baro_before_imu"] <= 1 and c["gnss_before_start"] <= 1 and c["rng_before_start"] <= 1, dict(c)
+    assert c["imu_stale_epochs"] == 0 and n >= 898

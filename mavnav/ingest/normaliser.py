@@ -60,6 +60,12 @@ Decisions the issue left open (see also the module docs of :mod:`.clock`,
   datum is used for the rest of the stream: ``relative_alt`` (above its
   home) or ``-z`` (above its EKF origin); ``stats.autopilot_reference``
   says which.
+* **First IMU first.** At the start of a boot, baro, GNSS and rangefinder
+  samples wait (at most 5 s of their vehicle time) until the first IMU
+  sample of the boot has gone out: the IMU is held a little longer (its
+  source choice, its attitude), and the epochs start on IMU data, so a
+  reference known quickly must not make the first baro samples arrive
+  before anything they can be integrated with.
 * **Link.** The link is lost when nothing from the vehicle arrived for
   ``link_timeout_s`` of receive time: a live source calls :meth:`tick`,
   a tlog shows it as a receive-time hole (both events then come together).
@@ -111,6 +117,8 @@ REL_ALT_MAX_AGE_US = 1_000_000  # a baro sample pairs with the autopilot's heigh
 ANCHOR_WINDOW_US = 1_000_000  # baro samples averaged for a reference from the autopilot (capped by startup_window_s)
 HOME_UNSET_MM = 50  # GLOBAL_POSITION_INT alt - relative_alt below this: ArduPilot's home not yet set
 WAIT_NOTICE_US = 1_000_000  # held this long for a reference: say what for
+PRE_IMU_HOLD_US = 5_000_000  # at most this long do measurements wait for the first IMU sample of a boot
+GATED = frozenset(("baro", "gnss", "range"))
 REL_HIST_MAX = 8192
 
 IMU_RANKING = ("HIGHRES_IMU", "RAW_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3")
@@ -166,6 +174,8 @@ class Normaliser:
         # the autopilot's height above its home / EKF origin, this boot, while the baro reference is open
         self._rel_hist = {"GLOBAL_POSITION_INT": [], "LOCAL_POSITION_NED": []}  # [(t_us, height_m, vel_up_mps)]
         self._wait_said: set = set()
+        self._imu_out = False  # an IMU sample of this boot went out
+        self._pre_imu: List[object] = []  # measurements waiting for it
         self._cand: Optional[tuple] = None
         self._followers: List[tuple] = []
         self._last_recv: Optional[float] = None
@@ -237,6 +247,8 @@ class Normaliser:
             self._handlers[msgid](fields, recv_s, compid)
         except Exception as exc:  # a bug must not stop a live monitor: counted, and tests require zero
             self._reject(recv_s, "internal_error", f"{wire.msg_name(msgid)}: {type(exc).__name__}: {exc}")
+        if self._pre_imu and self._imu_out:
+            self._merge_gate()
 
     def problem(self, rejected: Rejected) -> None:
         """A frame-level problem reported by the reader (garbage, CRC, unknown id...)."""
@@ -358,6 +370,8 @@ class Normaliser:
         origin, items = self.gnss_ref.finish()
         self._gnss_released(origin, items)
         self._ap_release(final=True)
+        self._imu_out = True
+        self._merge_gate()
 
     def _reboot(self, t_us: int, recv_s: float) -> None:
         self._settle_boot()  # what belongs to the old boot goes out before the Reboot event
@@ -368,6 +382,7 @@ class Normaliser:
         self._run = None
         for hist in self._rel_hist.values():
             hist.clear()
+        self._imu_out = False
         self.stats.reboots += 1
         self._emit(Reboot(t_us=t_us, recv_s=recv_s, boot=boot, last_t_us=last if last is not None else 0))
 
@@ -861,7 +876,37 @@ class Normaliser:
 
     def _yield(self, kind: str, sample) -> None:
         self.stats.samples[kind] += 1
-        self.out.append(sample)
+        if kind not in GATED or (self._imu_out and not self._pre_imu):
+            self.out.append(sample)
+            if kind == "imu":
+                self._imu_out = True  # what waited joins the output at the end of this frame (_merge_gate)
+            return
+        held = self._pre_imu
+        held.append(sample)
+        if sample.boot != held[0].boot or sample.t_us - held[0].t_us > PRE_IMU_HOLD_US:
+            self._imu_out = True  # no IMU coming: the epoch builder will say what it could not use
+            self._merge_gate()
+
+    def _merge_gate(self) -> None:
+        """Measurements that waited for the first IMU sample join the output in time order
+        with the IMU samples released meanwhile (often a burst, once its source is chosen)."""
+        held = self._pre_imu
+        if not held or not self._imu_out:
+            return
+        self._pre_imu = []
+        held.sort(key=_sample_t)
+        out = self.out
+        merged: List[object] = []
+        i, n = 0, len(held)
+        for item in out:
+            if i < n and type(item) is SpecificForceUp:
+                t = item.t_us
+                while i < n and held[i].t_us <= t:
+                    merged.append(held[i])
+                    i += 1
+            merged.append(item)
+        merged.extend(held[i:])
+        out[:] = merged  # the same list: a live source holds it
 
     def _guarded(self, kind: str, t_us: int, recv_s: float, boot: int, sample) -> None:
         if self._admit(kind, t_us, recv_s, boot):
@@ -887,6 +932,10 @@ class Normaliser:
 
 
 ANCHORED = ("home", "autopilot_home", "ekf_origin")
+
+
+def _sample_t(s) -> int:
+    return s.t_us
 
 
 def _item_t(item):
