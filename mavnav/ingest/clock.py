@@ -4,13 +4,14 @@ Vehicle time is integer microseconds since the vehicle booted. It is learnt
 from the messages that carry a boot-time field; receive time (``recv_s``)
 is used only to place messages that carry no time at all.
 
-* **Reboot.** A boot-time value more than ``reboot_jump_s`` behind the
-  latest one is held as a *candidate*; if the next boot-time value confirms
-  the new timeline (also far behind, and not before the candidate by more
-  than the jump), the vehicle rebooted: the boot index increments. Otherwise
-  the candidate was a corrupt value and is refused (``time_jump``). A
-  forward jump larger than the receive time elapsed allows (3x plus 10 s)
-  is held and confirmed the same way.
+* **Reboot, clock steps, stale packets.** A boot-time value well behind
+  the latest one is held as a *candidate* time base, and so is a forward
+  jump larger than the receive time elapsed allows (3x plus 10 s); the
+  normaliser confirms it with several messages (see ``Normaliser._timed``):
+  more than ``reboot_jump_s`` behind is a reboot (the boot index
+  increments), less is a step of the vehicle clock (``step_us`` keeps one
+  timeline), and a candidate the old time base goes on after was a stale
+  or corrupt packet.
 * **Unix time.** A ``time_usec`` above 1e15 us (31 years of uptime) is Unix
   time. It is mapped onto boot time with the offset from SYSTEM_TIME when
   the vehicle sends one with a Unix time, else with the receive-time offset
@@ -39,15 +40,16 @@ class VehicleClock:
         self.last_recv_s: Optional[float] = None
         self.first_t_us: Optional[int] = None
         self.unix_offset_us: Optional[int] = None  # unix_us - boot_us from SYSTEM_TIME
-        self.candidate_t_us: Optional[int] = None
         self.duration_us = 0  # completed boots
+        self.step_us = 0  # added to this boot's times after steps of the vehicle clock
 
-    def classify(self, t_us: int, recv_s: float) -> int:
-        """ACCEPT a boot-time value, or HOLD it as a jump candidate."""
+    def classify(self, t_us: int, recv_s: float, behind_us: int = 300_000) -> int:
+        """ACCEPT a boot-time value, or HOLD it as a candidate new time base (behind by
+        more than ``behind_us``, or ahead by more than the receive time allows)."""
         last = self.last_t_us
         if last is None:
             return ACCEPT
-        if t_us < last - self.jump_us:
+        if t_us < last - min(behind_us, self.jump_us):
             return HOLD
         if self.last_recv_s is not None:
             allowed = 3e6 * max(0.0, recv_s - self.last_recv_s) + 10e6
@@ -55,22 +57,12 @@ class VehicleClock:
                 return HOLD
         return ACCEPT
 
-    def confirms(self, cand_t_us: int, t_us: int) -> bool:
-        """Does ``t_us`` (the next boot-time value) confirm the candidate's timeline?"""
-        last = self.last_t_us if self.last_t_us is not None else t_us
-        if cand_t_us < last:  # backwards jump: the next value must also be far behind
-            return t_us < last - self.jump_us and t_us >= cand_t_us - self.jump_us
-        return t_us >= cand_t_us - self.jump_us  # forward jump: next value near or after it
-
     def accept(self, t_us: int, recv_s: float) -> None:
         if self.last_t_us is None or t_us > self.last_t_us:
             self.last_t_us = t_us
         if self.first_t_us is None:
             self.first_t_us = t_us
         self.last_recv_s = recv_s
-
-    def is_reboot(self, cand_t_us: int) -> bool:
-        return self.last_t_us is not None and cand_t_us < self.last_t_us
 
     def jump_to(self, t_us: int, recv_s: float) -> None:
         """Move onto a confirmed forward jump (same boot)."""
@@ -85,6 +77,7 @@ class VehicleClock:
         self.first_t_us = t_us
         self.last_recv_s = recv_s
         self.unix_offset_us = None
+        self.step_us = 0
         return self.boot
 
     @property

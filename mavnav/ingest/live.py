@@ -18,6 +18,10 @@ itself is not scheduled. The queue is bounded (``max_backlog_bytes``): a
 consumer that stays slower than the link drops what does not fit, counted
 in ``stats.dropped_chunks``. The link-loss timer runs only when the queue is
 empty, so a backlog is never taken for silence.
+
+**Reordered datagrams** are put back in MAVLink sequence order by the
+reader (:mod:`.stream_reader`): a gap waits up to :data:`REORDER_S` for its
+late frames, so nothing is refused as out of order downstream.
 """
 
 from __future__ import annotations
@@ -40,6 +44,8 @@ from .tlog import fill_message_stats
 _RECV_BYTES = 65536
 RCVBUF_BYTES = 8 << 20  # 8 MiB: ~10 s of a busy 4x link in the kernel
 MAX_BACKLOG_BYTES = 256 << 20
+REORDER_S = 0.1  # a sequence gap waits this long for its late frames (receive time)
+REORDER_FRAMES = 100  # or this many frames behind it (stream_reader.MAX_DISPLACEMENT)
 
 
 def _enlarge_rcvbuf(conn, nbytes: int = RCVBUF_BYTES) -> Optional[int]:
@@ -103,7 +109,7 @@ class LiveSource:
             self._conn = mavutil.mavlink_connection(device, **kwargs)
         except Exception as exc:  # socket, serial and parsing errors alike
             raise InputError(f"{connection}: cannot open ({exc})") from None
-        self._reader = StreamReader(WANTED)
+        self._reader = StreamReader(WANTED, reorder_s=REORDER_S, reorder_frames=REORDER_FRAMES)
         self._norm = Normaliser(self.config, sysid, self.stats)
         self.stats.format = "live"
         self.rcvbuf_bytes = _enlarge_rcvbuf(self._conn)
@@ -171,6 +177,14 @@ class LiveSource:
                     break
                 time.sleep(self.poll_s)  # a transient socket or serial error: keep listening
 
+    def _handle(self, items) -> None:
+        norm = self._norm
+        for item in items:
+            if type(item) is tuple:
+                norm.feed(*item)
+            else:
+                norm.problem(item)
+
     def _start_receiver(self) -> None:
         if self._receiver is None and not self._closed.is_set():
             self._receiver = threading.Thread(target=self._receive, name="mavnav-receive", daemon=True)
@@ -196,16 +210,15 @@ class LiveSource:
             if data:
                 with self._backlog_lock:
                     self._backlog -= len(data)
-                for item in reader.feed(data, recv_s):
-                    if type(item) is tuple:
-                        norm.feed(*item)
-                    else:
-                        norm.problem(item)
+                self._handle(reader.feed(data, recv_s))
             if q.empty():  # caught up: a silence now is a silence on the link, not a backlog
-                norm.tick(self.clock())
+                now = self.clock()
+                self._handle(reader.expire(now))
+                norm.tick(now)
             if out:
                 yield from out
                 out.clear()
+        self._handle(reader.flush())
         norm.finish()
         fill_message_stats(self.stats, reader, norm.sysid)
         yield from out

@@ -97,7 +97,7 @@ from ..samples import (
 )
 from . import wire
 from .attitude import AttitudeInterpolator
-from .clock import HOLD, StreamClocks, VehicleClock
+from .clock import HOLD, UNIX_THRESHOLD_US, StreamClocks, VehicleClock
 from .references import ReferenceResolver
 from .stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
 from .streams import KindGuard, SourceSelector
@@ -120,6 +120,10 @@ WAIT_NOTICE_US = 1_000_000  # held this long for a reference: say what for
 PRE_IMU_HOLD_US = 5_000_000  # at most this long do measurements wait for the first IMU sample of a boot
 GATED = frozenset(("baro", "gnss", "range"))
 REL_HIST_MAX = 8192
+BEHIND_US = 300_000  # a vehicle time this far behind the clock starts a candidate time base
+CONFIRM_N = 5  # messages on a new time base before it is adopted ...
+CONFIRM_SPAN_US = 1_000_000  # ... spanning this much of its time (or catching up), nothing of the old one between
+CLOCK_STEP_GAP_US = 1_000  # after a step back, the first new time lands this far after the last old one
 
 IMU_RANKING = ("HIGHRES_IMU", "RAW_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3")
 RANGE_RANKING = ("DISTANCE_SENSOR", "RANGEFINDER")
@@ -176,7 +180,7 @@ class Normaliser:
         self._wait_said: set = set()
         self._imu_out = False  # an IMU sample of this boot went out
         self._pre_imu: List[object] = []  # measurements waiting for it
-        self._cand: Optional[tuple] = None
+        self._cands: List[tuple] = []  # (t_us, recv_s, fn, f): a new vehicle time base, unconfirmed
         self._followers: List[tuple] = []
         self._last_recv: Optional[float] = None
         self._link_lost = False
@@ -269,11 +273,8 @@ class Normaliser:
         if self.sysid is None and self._preselect:
             self.stats.filtered["no_vehicle_heartbeat"] += len(self._preselect)
             self._preselect.clear()
-        if self._cand is not None:
-            ct, crecv, _fn, _f, _c = self._cand
-            self._cand = None
-            self._reject(crecv, "time_jump", "unconfirmed jump at end of stream", ct)
-            self._release_followers()
+        if self._cands:
+            self._refute_candidates("at the end of the stream")
         self._settle_boot()
         self._finalise_stats()
 
@@ -305,50 +306,126 @@ class Normaliser:
     # ------------------------------------------------------------------ time
 
     def _timed(self, t_us: int, recv_s: float, compid: int, fn, f) -> None:
-        """Route a ``time_boot_ms``-stamped message through the vehicle clock, then to ``fn``."""
+        """Route a ``time_boot_ms``-stamped message through the vehicle clock, then to ``fn``.
+
+        A time far behind the clock (or too far ahead) starts a *candidate*
+        time base. It is adopted only once at least ``CONFIRM_N`` messages
+        continue it, with nothing from the old one in between, over
+        ``CONFIRM_SPAN_US`` of their own time or until they catch up with
+        the old time base (a small step back): a reboot (behind by
+        ``reboot_jump_s`` or more), a step of the vehicle clock (behind by
+        less: later times are moved on by the step, so there is one
+        timeline and nothing is lost), or a jump forward. A message that
+        leaps from the candidates back to the old time base refutes them:
+        they were stale packets (a radio's buffer, a late burst after an
+        outage: dropped, counted as ``stale``) or a corrupt time
+        (``time_jump``)."""
         if compid != self.ap_compid:
             # another component's clock: mapped onto ours, never drives it
             self._stream_time(("boot_ms", compid, fn.__name__), t_us, recv_s, fn, f)
             return
         clock = self.clock
-        if self._cand is not None:
-            ct, crecv, cfn, cf, _ = self._cand
-            self._cand = None
-            if clock.confirms(ct, t_us):
-                if clock.is_reboot(ct):
-                    self._reboot(ct, crecv)
-                else:
-                    clock.jump_to(ct, crecv)
-                clock.accept(ct, crecv)
-                cfn(cf, ct, crecv)
-            else:
-                self._reject(crecv, "time_jump", f"vehicle time {ct} us against {clock.last_t_us} us", ct)
-            self._release_followers()
-        if clock.classify(t_us, recv_s) == HOLD:
-            self._cand = (t_us, recv_s, fn, f, compid)
+        t_us += clock.step_us
+        cands = self._cands
+        if cands:
+            last = clock.last_t_us
+            ct0, ct1 = cands[0][0], cands[-1][0]
+            if ct0 < last:  # behind: refuted by a leap from the candidates back to the old time base
+                back_to_old = t_us >= last - BEHIND_US and t_us - ct1 > BEHIND_US
+                goes_on = not back_to_old and t_us >= ct1 - BEHIND_US
+            else:  # ahead: refuted by a time back near the old one
+                goes_on = t_us >= ct1 - BEHIND_US
+            if goes_on:
+                cands.append((t_us, recv_s, fn, f))
+                caught_up = ct0 < last and t_us >= last - BEHIND_US
+                if len(cands) >= CONFIRM_N and (t_us - ct0 >= CONFIRM_SPAN_US or caught_up):
+                    self._adopt_candidates()
+                return
+            self._refute_candidates(f"then {t_us} us")
+        if clock.classify(t_us, recv_s, BEHIND_US) == HOLD:
+            self._cands = [(t_us, recv_s, fn, f)]
             return
         clock.accept(t_us, recv_s)
         fn(f, t_us, recv_s)
         if self.att.pending:
             self._resolve_attitude()
 
-    def _stream_time(self, key, t_raw: int, recv_s: float, fn, f) -> None:
+    def _adopt_candidates(self) -> None:
+        cands, self._cands = self._cands, []
+        clock = self.clock
+        t0, recv0 = cands[0][0], cands[0][1]
+        last = clock.last_t_us
+        if t0 < last - clock.jump_us:
+            self._reboot(t0, recv0)
+        elif t0 < last:
+            step = last - t0 + CLOCK_STEP_GAP_US  # the first new time just after the last old one
+            clock.step_us += step
+            cands = [(t + step, r, fn, f) for t, r, fn, f in cands]
+            self.streams.reset()  # the other clocks are placed on it again
+            self.stats.clock_steps += 1
+            self._emit(Notice(recv0, "clock_step",
+                              f"vehicle clock stepped back {(last - t0) * 1e-6:.2f} s at {last * 1e-6:.3f} s "
+                              f"(boot {clock.boot}): later times moved on by {step * 1e-6:.2f} s to keep one timeline"))
+        else:
+            clock.jump_to(t0, recv0)
+        for t, r, fn, f in cands:
+            clock.accept(t, r)
+            fn(f, t, r)
+        self._release_followers(cands)
+        if self.att.pending:
+            self._resolve_attitude()
+
+    def _refute_candidates(self, why: str) -> None:
+        cands, self._cands = self._cands, []
+        last = self.clock.last_t_us
+        for t, r, _fn, _f in cands:
+            if last is not None and t < last:
+                self._reject(r, "stale", f"vehicle time {t} us against {last} us, {why}: an isolated old packet", t)
+            else:
+                self._reject(r, "time_jump", f"vehicle time {t} us against {last} us, {why}", t)
+        self._release_followers()
+
+    def _stream_time(self, key, t_raw: int, recv_s: float, fn, f, est: Optional[int] = None) -> None:
         """A time that may be on another clock (``time_usec``, other components): see StreamClocks.
 
-        While a clock jump is unconfirmed these wait for its verdict, so that
+        While a new time base is unconfirmed these wait for its verdict, so that
         the samples right after a reboot land in the new boot."""
-        if self._cand is not None:
+        if self._cands:
             self._followers.append((key, t_raw, recv_s, fn, f))
             return
-        for t_us, (ffn, ff, frecv) in self.streams.map(key, t_raw, self.clock.estimate(recv_s), (fn, f, recv_s)):
+        if est is None:
+            est = self.clock.estimate(recv_s)
+        for t_us, (ffn, ff, frecv) in self.streams.map(key, t_raw, est, (fn, f, recv_s)):
             ffn(ff, t_us, frecv)
         if self.att.pending:
             self._resolve_attitude()
 
-    def _release_followers(self) -> None:
+    def _untimed(self, recv_s: float, fn, f, what: str) -> None:
+        """A message without a time of its own: placed on the vehicle clock by receive time."""
+        if self._cands:
+            self._followers.append((None, None, recv_s, fn, f))
+            return
+        t_us = self.clock.estimate(recv_s)
+        if t_us is None:
+            self._reject(recv_s, "no_time", f"{what} before any timed message")
+        else:
+            fn(f, t_us, recv_s)
+
+    def _release_followers(self, cands: Optional[list] = None) -> None:
+        """Release what waited for a verdict on a new time base; after one was adopted
+        (``cands``, its messages), their receive times place them on it."""
         followers, self._followers = self._followers, []
         for key, t_raw, recv_s, fn, f in followers:
-            self._stream_time(key, t_raw, recv_s, fn, f)
+            est = _estimate_on(cands, recv_s) if cands else None
+            if key is None:
+                if est is None:
+                    self._untimed(recv_s, fn, f, "untimed message")
+                else:
+                    fn(f, est, recv_s)
+            elif key[0] == "usec":
+                self._usec_stream(key[1], t_raw, recv_s, key[2], fn, f, est)
+            else:
+                self._stream_time(key, t_raw, recv_s, fn, f, est)
 
     def _flush_streams(self) -> None:
         for t_us, (ffn, ff, frecv) in self.streams.flush():
@@ -391,6 +468,17 @@ class Normaliser:
 
     def _system_time_at(self, f, t_us, recv_s) -> None:
         self.clock.set_unix_offset(f["time_unix_usec"], t_us)
+
+    def _usec_stream(self, key, t_usec: int, recv_s: float, what: str, fn, f, est: Optional[int] = None) -> None:
+        """A ``time_usec`` stream: boot time, Unix time or none, then :meth:`_stream_time`.
+        Unix and missing times are placed by the vehicle clock: while a new time base is
+        unconfirmed they wait, and are placed on the one that holds."""
+        if self._cands and (t_usec == 0 or t_usec >= UNIX_THRESHOLD_US):
+            self._followers.append((("usec", key, what), t_usec, recv_s, fn, f))
+            return
+        t = self._usec(t_usec, recv_s, what)
+        if t is not None:
+            self._stream_time(key, t, recv_s, fn, f, est)
 
     def _usec(self, t_usec: int, recv_s: float, what: str) -> Optional[int]:
         t = self.clock.boot_from_usec(t_usec, recv_s)
@@ -454,9 +542,7 @@ class Normaliser:
             self._reject(recv_s, "impossible", f"{name} acceleration beyond 50 g")
             return
         if usec:
-            t = self._usec(t_raw, recv_s, name)
-            if t is not None:
-                self._stream_time((name, compid), t, recv_s, self._imu_at, (fb, name))
+            self._usec_stream((name, compid), t_raw, recv_s, name, self._imu_at, (fb, name))
         else:
             self._timed(t_raw, recv_s, compid, self._imu_at, (fb, name))
 
@@ -632,15 +718,9 @@ class Normaliser:
         sigma_m = v_acc / 1000.0 if 0 < v_acc < UINT32_MAX else None  # mm, 0 = unknown
         payload = (alt_m, sigma_m, fix, f["satellites_visible"])
         if f["time_usec"] == 0:  # not filled: placed on the vehicle clock by receive time
-            t_us = self.clock.estimate(recv_s)
-            if t_us is None:
-                self._reject(recv_s, "no_time", "GPS_RAW_INT without time before any timed message")
-            else:
-                self._gnss_at(payload, t_us, recv_s)
+            self._untimed(recv_s, self._gnss_at, payload, "GPS_RAW_INT without time")
             return
-        t_us = self._usec(f["time_usec"], recv_s, "GPS_RAW_INT")
-        if t_us is not None:
-            self._stream_time(("GPS_RAW_INT", compid), t_us, recv_s, self._gnss_at, payload)
+        self._usec_stream(("GPS_RAW_INT", compid), f["time_usec"], recv_s, "GPS_RAW_INT", self._gnss_at, payload)
 
     def _gnss_at(self, payload, t_us, recv_s) -> None:
         alt_m, sigma_m, fix, sats = payload
@@ -711,10 +791,9 @@ class Normaliser:
             self._range_selected(it)
 
     def _rangefinder(self, f, recv_s, compid) -> None:
-        t_us = self.clock.estimate(recv_s)  # no time field: see clock.py
-        if t_us is None:
-            self._reject(recv_s, "no_time", "RANGEFINDER before any timed message")
-            return
+        self._untimed(recv_s, self._rangefinder_at, f, "RANGEFINDER")  # no time field: see clock.py
+
+    def _rangefinder_at(self, f, t_us, recv_s) -> None:
         self._note(self.range_sel, "RANGEFINDER", self._range_selected)
         item = (t_us, recv_s, self.clock.boot, "RANGEFINDER", f)
         for it in self.range_sel.offer("RANGEFINDER", item):
@@ -898,8 +977,9 @@ class Normaliser:
         out = self.out
         merged: List[object] = []
         i, n = 0, len(held)
+        boot = held[0].boot
         for item in out:
-            if i < n and type(item) is SpecificForceUp:
+            if i < n and type(item) is SpecificForceUp and item.boot == boot:
                 t = item.t_us
                 while i < n and held[i].t_us <= t:
                     merged.append(held[i])
@@ -932,6 +1012,18 @@ class Normaliser:
 
 
 ANCHORED = ("home", "autopilot_home", "ekf_origin")
+
+
+def _estimate_on(cands, recv_s: float) -> int:
+    """Vehicle time at ``recv_s`` on the time base of ``cands`` ((t_us, recv_s, ...), in order):
+    from the latest candidate received by then (the first one for earlier receive times)."""
+    t0, r0 = cands[0][0], cands[0][1]
+    for c in cands:
+        if c[1] <= recv_s:
+            t0, r0 = c[0], c[1]
+        else:
+            break
+    return t0 + int(round((recv_s - r0) * 1e6))
 
 
 def _sample_t(s) -> int:

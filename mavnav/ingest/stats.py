@@ -56,6 +56,7 @@ class IngestStats:
     ignored_by_sysid: Dict[int, int] = field(default_factory=dict)
     gaps: List[GapRecord] = field(default_factory=list)
     reboots: int = 0
+    clock_steps: int = 0  # the vehicle clock stepped back (less than a reboot) and was kept on one timeline
     duration_s: float = 0.0
     vehicle: Optional[VehicleInfo] = None
     imu_source: Optional[str] = None
