@@ -44,6 +44,11 @@ def run(
                 if summary.first_t_us is None:
                     summary.first_t_us = report.t_us
                 summary.last_t_us = report.t_us
+                spans = summary.spans
+                if spans and spans[-1][0] == report.boot:
+                    spans[-1][2] = report.t_us
+                else:
+                    spans.append([report.boot, report.t_us, report.t_us])
                 for ev in events:
                     summary.alarms.append(ev)
                     out.alarm(ev)

@@ -120,3 +120,6 @@ class RunSummary:
     first_t_us: Optional[int] = None
     last_t_us: Optional[int] = None
     reboots: int = 0
+    # (boot, first t_us, last t_us) of the epochs of each boot: vehicle time restarts at a reboot,
+    # so first_t_us..last_t_us alone is no time span once there was one
+    spans: list = field(default_factory=list)

@@ -20,7 +20,7 @@ from ..pipeline import run as run_pipeline
 from ..sim.effects import FaultedSource
 from ..sim.faults import parse_faults
 from ..report import AlarmEvent, RunSummary
-from ..samples import LinkLost, LinkRecovered, Notice, ReferenceSet
+from ..samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceSet
 from ..sinks.base import Sink
 from ..sinks.csv_sink import CsvSink
 from . import main
@@ -79,6 +79,10 @@ class AlarmPrinter(Sink):
             click.echo(f"{_recv(s.recv_s)} input       link recovered after {s.outage_s:.1f} s", err=True)
         elif ts is Notice:
             click.echo(f"{_recv(s.recv_s)} input       {s.text}", err=True)
+        elif ts is Reboot:
+            click.echo(f"[t={s.t_us * 1e-6:9.3f} s boot {s.boot}] input       VEHICLE REBOOTED: its time restarted at "
+                       f"{s.t_us * 1e-6:.3f} s after {s.last_t_us * 1e-6:.3f} s of boot {s.boot - 1}; "
+                       f"the monitor starts again", err=True)
         elif ts is ReferenceSet:
             value = f"{s.value:.1f} Pa" if s.kind == "baro" else f"{s.value:.2f} m"
             at = f", reference point {s.alt_ref_msl_m:.2f} m MSL" if s.alt_ref_msl_m is not None else ""
@@ -88,8 +92,14 @@ class AlarmPrinter(Sink):
 
 def print_summary(summary: RunSummary, title: str) -> None:
     span = ""
-    if summary.first_t_us is not None:
-        span = f", vehicle time {summary.first_t_us * 1e-6:.1f}-{summary.last_t_us * 1e-6:.1f} s"
+    spans = summary.spans
+    if len(spans) == 1:
+        _, t0, t1 = spans[0]
+        span = f", vehicle time {t0 * 1e-6:.1f}-{t1 * 1e-6:.1f} s"
+    elif spans:  # vehicle time restarts at each reboot: one span per boot, and their sum
+        total = sum(t1 - t0 for _, t0, t1 in spans) * 1e-6
+        span = ", vehicle time " + ", ".join(f"{t0 * 1e-6:.1f}-{t1 * 1e-6:.1f} s (boot {b})" for b, t0, t1 in spans)
+        span += f" ({total:.1f} s in all)"
     alarms = [a for a in summary.alarms if a.state == "alarm"]
     click.echo(f"{title}: {summary.epochs} epochs{span}, {len(alarms)} alarms, {summary.reboots} reboots", err=True)
     for name, why in summary.sink_failures.items():

@@ -110,7 +110,7 @@ class LiveSource:
         except Exception as exc:  # socket, serial and parsing errors alike
             raise InputError(f"{connection}: cannot open ({exc})") from None
         self._reader = StreamReader(WANTED, reorder_s=REORDER_S, reorder_frames=REORDER_FRAMES)
-        self._norm = Normaliser(self.config, sysid, self.stats)
+        self._norm = Normaliser(self.config, sysid, self.stats, link_name=self._link_name(connection))
         self.stats.format = "live"
         self.rcvbuf_bytes = _enlarge_rcvbuf(self._conn)
         self.max_backlog_bytes = max_backlog_bytes
@@ -125,6 +125,14 @@ class LiveSource:
     def mav(self):
         """The underlying pymavlink connection (for sending back on the same link)."""
         return self._conn
+
+    def _link_name(self, connection: str) -> str:
+        """The connection string, with the port actually bound when it asked for any (``:0``)."""
+        addr = self.local_address
+        scheme, _, rest = connection.partition(":")
+        if addr and scheme in ("udpin", "udp", "tcpin") and rest.rpartition(":")[2] == "0":
+            return f"{scheme}:{rest.rpartition(':')[0]}:{addr[1]}"
+        return connection
 
     @property
     def local_address(self):

@@ -120,6 +120,9 @@ WAIT_NOTICE_US = 1_000_000  # held this long for a reference: say what for
 PRE_IMU_HOLD_US = 5_000_000  # at most this long do measurements wait for the first IMU sample of a boot
 GATED = frozenset(("baro", "gnss", "range"))
 REL_HIST_MAX = 8192
+WAIT_HEARTBEAT_S = 2.0  # live: no vehicle heartbeat this long after starting: say what is awaited
+WAIT_HEARTBEAT_REPEAT_S = 10.0  # and again this often
+OTHER_FRAMES_BEFORE_SAYING = 20  # another system without a heartbeat is said after this many frames
 BEHIND_US = 300_000  # a vehicle time this far behind the clock starts a candidate time base
 CONFIRM_N = 5  # messages on a new time base before it is adopted ...
 CONFIRM_SPAN_US = 1_000_000  # ... spanning this much of its time (or catching up), nothing of the old one between
@@ -150,11 +153,17 @@ def _finite(*vals) -> bool:
 
 
 class Normaliser:
-    def __init__(self, config: IngestConfig, sysid: Optional[int] = None, stats: Optional[IngestStats] = None):
+    def __init__(self, config: IngestConfig, sysid: Optional[int] = None, stats: Optional[IngestStats] = None,
+                 link_name: str = "the link"):
         cfg = self.cfg = config
         self.stats = stats if stats is not None else IngestStats()
         self.out: List[object] = []
         self.sysid = sysid
+        self.link_name = link_name
+        self._asked = sysid is not None
+        self._others: dict = {}  # other systems heard: sysid -> [frames, description or None, said]
+        self._wait_hb_t0: Optional[float] = None  # receive time of the first tick (live)
+        self._wait_hb_next: Optional[float] = None
         self.ap_compid = MAV_COMP_ID_AUTOPILOT1
         self.autopilot: Optional[int] = None
         self._preselect: Deque[tuple] = deque()
@@ -220,6 +229,7 @@ class Normaliser:
 
     def feed(self, recv_s: float, msgid: int, sysid: int, compid: int, payload: bytes) -> None:
         if sysid != self.sysid:
+            self._other_system(recv_s, msgid, sysid, payload)
             if self.sysid is None:
                 self._preselect_frame(recv_s, msgid, sysid, compid, payload)
             else:
@@ -261,7 +271,10 @@ class Normaliser:
         self.out.append(rejected)
 
     def tick(self, now_s: float) -> None:
-        """Live links: declare the link lost after ``link_timeout_s`` of silence."""
+        """Live links: declare the link lost after ``link_timeout_s`` of silence, and say
+        what is awaited while no heartbeat of the vehicle came."""
+        if self.autopilot is None:
+            self._say_waiting_heartbeat(now_s)
         last = self._last_recv
         if last is not None and not self._link_lost and now_s - last > self.cfg.link_timeout_s:
             self._link_lost = True
@@ -302,6 +315,62 @@ class Normaliser:
             self.autopilot = f["autopilot"]
             self.ap_compid = compid
             self.stats.vehicle = VehicleInfo(self.sysid, compid, f["type"], f["autopilot"])
+            why = "as asked (--sysid)" if self._asked else "the first autopilot heartbeat"
+            self._emit(Notice(recv_s, "vehicle", f"monitoring system {self.sysid} "
+                                                 f"({describe_system(f['type'], f['autopilot'])}, component {compid}) "
+                                                 f"on {self.link_name}: {why}"))
+            self._others.pop(self.sysid, None)  # heard before it was chosen
+            for sid in sorted(self._others):
+                self._say_ignored(recv_s, sid, final=True)
+
+    def _other_system(self, recv_s, msgid, sysid, payload) -> None:
+        """A frame from a system that is not (or not yet) the vehicle: remembered, and said once."""
+        o = self._others.get(sysid)
+        if o is None:
+            o = self._others[sysid] = [0, None, False]
+        o[0] += 1
+        if msgid == HEARTBEAT and o[1] is None:
+            try:
+                hb = self._decoders[HEARTBEAT](payload)
+                o[1] = (hb["type"], hb["autopilot"])
+            except Exception:
+                pass
+        if self.autopilot is not None and not o[2] and (o[1] is not None or o[0] >= OTHER_FRAMES_BEFORE_SAYING):
+            self._say_ignored(recv_s, sysid)
+
+    def _say_ignored(self, recv_s, sysid, final: bool = False) -> None:
+        o = self._others[sysid]
+        if o[2] or (o[1] is None and not final and o[0] < OTHER_FRAMES_BEFORE_SAYING):
+            return
+        o[2] = True
+        if o[1] is None:
+            what, hint = "no heartbeat heard", f"; --sysid {sysid} to monitor it instead"
+        else:
+            what = describe_system(*o[1])
+            hint = "" if o[1][0] == MAV_TYPE_GCS or o[1][1] == MAV_AUTOPILOT_INVALID else \
+                f"; --sysid {sysid} to monitor it instead"
+        self._emit(Notice(recv_s, "ignored", f"ignoring system {sysid} ({what}): not the monitored vehicle "
+                                             f"(system {self.sysid}){hint}"))
+
+    def _say_waiting_heartbeat(self, now_s: float) -> None:
+        if self._wait_hb_t0 is None:
+            self._wait_hb_t0 = now_s
+            self._wait_hb_next = now_s + WAIT_HEARTBEAT_S
+            return
+        if now_s < self._wait_hb_next:
+            return
+        self._wait_hb_next = now_s + WAIT_HEARTBEAT_REPEAT_S
+        heard = [f"system {sid} ({describe_system(*o[1]) if o[1] else 'no heartbeat'})"
+                 for sid, o in sorted(self._others.items())]
+        what = f"a heartbeat from system {self.sysid}" if self._asked else "an autopilot heartbeat"
+        since = f"{now_s - self._wait_hb_t0:.0f} s"
+        if heard:
+            text = f"waiting for {what} on {self.link_name} ({since}); heard only " + ", ".join(heard)
+        elif self._asked and self._last_recv is not None:
+            text = f"waiting for {what} on {self.link_name} ({since}); its data arrive, its heartbeat not"
+        else:
+            text = f"waiting for a heartbeat on {self.link_name} ({since}): nothing received yet"
+        self._emit(Notice(now_s, "waiting_heartbeat", text))
 
     # ------------------------------------------------------------------ time
 
@@ -1012,6 +1081,19 @@ class Normaliser:
 
 
 ANCHORED = ("home", "autopilot_home", "ekf_origin")
+
+
+def describe_system(mav_type: int, autopilot: int) -> str:
+    """``quadrotor, ArduPilot``: a HEARTBEAT's type and autopilot in words."""
+    def word(enum: str, value: int, prefix: str) -> str:
+        e = wire.ENUMS.get(enum, {}).get(value)
+        return e.name[len(prefix):].lower().replace("_", " ") if e is not None else f"{enum.lower()} {value}"
+
+    ap = {MAV_AUTOPILOT_ARDUPILOTMEGA: "ArduPilot", 12: "PX4", MAV_AUTOPILOT_INVALID: "no autopilot"}.get(
+        autopilot) or word("MAV_AUTOPILOT", autopilot, "MAV_AUTOPILOT_")
+    if mav_type == MAV_TYPE_GCS:
+        return "ground station"
+    return f"{word('MAV_TYPE', mav_type, 'MAV_TYPE_')}, {ap}"
 
 
 def _estimate_on(cands, recv_s: float) -> int:

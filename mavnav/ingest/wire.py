@@ -35,6 +35,7 @@ CRC_EXTRA: Dict[int, int] = {mid: cls.crc_extra for mid, cls in _dialect.mavlink
 CRC_EXTRA_BYTE: Dict[int, bytes] = {mid: bytes([x]) for mid, x in CRC_EXTRA.items()}
 MSG_NAME: Dict[int, str] = {mid: cls.msgname for mid, cls in _dialect.mavlink_map.items()}
 MSG_ID: Dict[str, int] = {name: mid for mid, name in MSG_NAME.items()}
+ENUMS = _dialect.enums  # enum name -> value -> entry (``.name``), for words on the console
 
 
 def msg_name(msgid: int) -> str:

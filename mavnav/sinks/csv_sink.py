@@ -4,8 +4,17 @@
 ``height_fused_m``, ``sigma_fused_m``, ``height_gnss_ch_m``,
 ``height_rng_ch_m``, ``height_baro_ch_m``, ``gnss_ok``, ``rng_ok``,
 ``baro_ok`` (1/0: the source is nominal or in caution), ``alarm`` (the
-overall state as a word). Heights in metres above the reference; NaN as
-``nan``. Times print with microsecond resolution, heights with 0.1 mm.
+overall state as a word), ``boot`` (the vehicle boot the time belongs to:
+0, then one more at every reboot), ``event`` (empty on an epoch's row).
+Heights in metres above the reference; NaN as ``nan``. Times print with
+microsecond resolution, heights with 0.1 mm.
+
+*Event rows* (``event`` not empty) say what happened between epochs, as it
+happens: ``reboot`` (at the new boot's first vehicle time), ``link lost``
+(written and flushed when the receive clock passes the timeout, while the
+link is down, at the vehicle time of the last epoch), ``link recovered``,
+``clock step``. Their other columns are empty: a reader of epochs skips
+rows whose ``event`` is set.
 
 Rows reach the file as the run goes, not only at close: on a live link
 (``info["live"]``) after every epoch, so a reader of the file is never behind
@@ -20,7 +29,7 @@ from pathlib import Path
 from typing import Optional
 
 from ..report import EpochReport, RunSummary
-from ..samples import LinkLost
+from ..samples import LinkLost, LinkRecovered, Notice, Reboot
 from .base import Sink
 
 COLUMNS = (
@@ -34,7 +43,10 @@ COLUMNS = (
     "rng_ok",
     "baro_ok",
     "alarm",
+    "boot",
+    "event",
 )
+_EMPTY = [""] * (len(COLUMNS) - 3)  # the epoch columns of an event row
 
 
 def _f(v: float) -> str:
@@ -54,7 +66,14 @@ def csv_row(r: EpochReport) -> list[str]:
         "1" if r.ok("rangefinder") else "0",
         "1" if r.ok("baro_ins") else "0",
         r.overall,
+        str(r.boot),
+        "",
     ]
+
+
+def event_row(t_us: Optional[int], boot: Optional[int], text: str) -> list[str]:
+    """A row saying what happened: ``t_s`` and ``boot`` (empty if not known yet) and ``event``."""
+    return [f"{t_us * 1e-6:.6f}" if t_us is not None else "", *_EMPTY, "" if boot is None else str(boot), text]
 
 
 class CsvSink(Sink):
@@ -69,6 +88,7 @@ class CsvSink(Sink):
         self._pending = 0  # rows written since the last flush
         self._recv_s: Optional[float] = None  # latest receive time seen
         self._flushed_recv_s: Optional[float] = None
+        self._last: tuple = (None, None)  # (t_us, boot) of the latest epoch
 
     def start(self, info: dict) -> None:
         self._live = bool(info.get("live"))
@@ -83,10 +103,26 @@ class CsvSink(Sink):
             self._recv_s = recv
             if self._flushed_recv_s is None:
                 self._flushed_recv_s = recv
-        if self._pending and type(s) is LinkLost:
-            self._flush()
+        ts = type(s)
+        t_us, boot = self._last
+        if ts is LinkLost:
+            self._event(t_us, boot, f"link lost: no data from the vehicle for {s.silent_s:.1f} s")
+            self._flush()  # said while it lasts, not when data returns
+        elif ts is LinkRecovered:
+            self._event(t_us, boot, f"link recovered after {s.outage_s:.1f} s")
+        elif ts is Reboot:
+            self._event(s.t_us, s.boot, f"reboot: vehicle time restarted at {s.t_us * 1e-6:.3f} s after "
+                                        f"{s.last_t_us * 1e-6:.3f} s of boot {s.boot - 1}")
+            self._last = (s.t_us, s.boot)
+        elif ts is Notice and s.kind == "clock_step":
+            self._event(t_us, boot, f"clock step: {s.text}")
+
+    def _event(self, t_us, boot, text: str) -> None:
+        self._w.writerow(event_row(t_us, boot, text))
+        self._pending += 1
 
     def epoch(self, report: EpochReport) -> None:
+        self._last = (report.t_us, report.boot)
         self._w.writerow(csv_row(report))
         self._pending += 1
         if self._live or (self._recv_s is not None and abs(self._recv_s - self._flushed_recv_s) >= self.flush_s):
