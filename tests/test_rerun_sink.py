@@ -36,6 +36,7 @@ from mavnav.samples import (
     GnssHeight,
     LinkLost,
     LinkRecovered,
+    Notice,
     RangeHeight,
     Reboot,
     Rejected,
@@ -298,6 +299,7 @@ def _feed(sink) -> tuple[list, list]:
                 sink.sample(Gap(t, 0.0, boot, "gnss", 1.25))
                 sink.sample(LinkLost(recv_s=0.0, silent_s=2.0))
                 sink.sample(LinkRecovered(recv_s=0.0, outage_s=2.5))
+                sink.sample(Notice(recv_s=0.0, kind="ignored", text=f"ignoring system 2 ({boot})"))
             new_state = "alarm" if 10 <= k < 15 else "nominal"
             if new_state != state:
                 ev = AlarmEvent(t, boot, "gnss", new_state, state, "window statistic high")
@@ -339,6 +341,7 @@ def test_hand_made_reports_with_a_reboot_read_back(tmp_path):
     texts = [x for _, x, _ in rec.texts["input/events"]]
     assert sum("link lost" in x for x in texts) == 2 and sum("link recovered" in x for x in texts) == 2
     assert sum("gap: no gnss" in x for x in texts) == 2
+    assert [x for x in texts if x.startswith("ignoring")] == ["ignoring system 2 (0)", "ignoring system 2 (1)"]
     # alarms, with levels
     assert [(t, lv) for t, _, lv in rec.texts["alarms"]] == [(ns(e), "ERROR" if e.state == "alarm" else "INFO")
                                                            for e in alarms]

@@ -57,6 +57,7 @@ from ..samples import (
     GnssHeight,
     LinkLost,
     LinkRecovered,
+    Notice,
     RangeHeight,
     Reboot,
     ReferenceSet,
@@ -461,6 +462,9 @@ class RerunSink(Sink):
                 w.text("input/events", ns, f"link lost: silent for {s.silent_s:.1f} s", "ERROR", bp.STATE_COLOURS["alarm"])
             else:
                 w.text("input/events", ns, f"link recovered after {s.outage_s:.1f} s", "INFO", bp.STATE_COLOURS["nominal"])
+            return
+        if isinstance(s, Notice):  # what the input waits for, the vehicle chosen, systems ignored, clock steps
+            w.text("input/events", self.clock.now_ns, s.text, "INFO", bp.STATE_COLOURS["nominal"])
             return
         if isinstance(s, Rejected):
             ns = self.clock.ns(s.boot, s.t_us)
