@@ -49,6 +49,17 @@ def _wait(cond, timeout=10.0):
     return True
 
 
+def send_all(sock, src, records) -> None:
+    """Send tlog records to a LiveSource and wait until its reader has them all
+    (flow control every 25 frames, not pacing)."""
+    start = src._reader.frames
+    for i, (_, frame) in enumerate(records):
+        sock.sendto(frame, src.local_address)
+        if i % 25 == 24:
+            assert _wait(lambda: src._reader.frames >= start + i + 1 - 50)
+    assert _wait(lambda: src._reader.frames == start + len(records))
+
+
 def test_link_loss_is_reported_while_it_lasts(tmp_path, capsys):
     recs = tlog_records(LOGS / "px4_hover_gnss_step.tlog")[:4000]
     clock = ReceiveClock()
@@ -63,12 +74,7 @@ def test_link_loss_is_reported_while_it_lasts(tmp_path, capsys):
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
 
     def send(part):
-        start = src._reader.frames
-        for i, (_, frame) in enumerate(part):
-            sock.sendto(frame, src.local_address)
-            if i % 25 == 24:  # flow control, not pacing
-                assert _wait(lambda: src._reader.frames >= start + i + 1 - 50)
-        assert _wait(lambda: src._reader.frames == start + len(part))
+        send_all(sock, src, part)
 
     def lost_texts():
         return [t for t in texts_of(peer.msgs, strict=False) if "LINK LOST" in t.text]

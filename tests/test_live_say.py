@@ -28,7 +28,7 @@ from mavnav.samples import Notice
 from mavnav.sinks.base import Sink
 from mavnav.sinks.csv_sink import COLUMNS, CsvSink
 from test_ingest_live import tlog_records
-from test_link_loss_live import ReceiveClock, _wait
+from test_link_loss_live import ReceiveClock, _wait, send_all
 
 LOGS = Path(__file__).resolve().parents[1] / "sitl_logs"
 
@@ -162,12 +162,7 @@ def test_link_loss_is_an_event_row_in_the_csv_while_it_lasts(tmp_path):
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
 
     def send(part):
-        start = src._reader.frames
-        for i, (_, frame) in enumerate(part):
-            sock.sendto(frame, src.local_address)
-            if i % 25 == 24:  # flow control, not pacing
-                assert _wait(lambda: src._reader.frames >= start + i + 1 - 50)
-        assert _wait(lambda: src._reader.frames == start + len(part))
+        send_all(sock, src, part)
 
     def events():
         return [r for r in _csv(out) if r["event"]]
