@@ -153,6 +153,14 @@ class _Log:
         self.damage.append(f"{name}: no boot time field; not used")
         return None
 
+    def timed(self, name: str, field: str) -> Optional[tuple[Table, np.ndarray]]:
+        """``(columns, boot time in us)`` of message ``name`` when it is logged with ``field``."""
+        t = self.table(name)
+        if t is None or field not in t:
+            return None
+        tt = self.time_us(name, t)
+        return None if tt is None else (t, tt)
+
     def param(self, name: str) -> Optional[float]:
         v = self.r.params.get(name)
         try:
@@ -250,13 +258,11 @@ def _firmware(log: _Log, rec: OnboardRecord) -> None:
 def _imu(log: _Log) -> Optional[ImuSeries]:
     cands = []
     for name in ("ACC", "IMU", "ACC1"):
-        t = log.table(name)
-        if t is None or "AccX" not in t:
+        got = log.timed(name, "AccX")
+        if got is None:
             continue
+        t, tt = got
         sel = _instance(t, "I", 0)
-        tt = log.time_us(name, t)
-        if tt is None:
-            continue
         if name == "ACC" and "SampleUS" in t:
             tt = t["SampleUS"].astype(np.int64)  # the sample's own time
         cands.append((name, tt[sel], t["AccX"][sel], t["AccY"][sel], t["AccZ"][sel]))
@@ -274,12 +280,10 @@ def _imu(log: _Log) -> Optional[ImuSeries]:
 
 def _attitude(log: _Log) -> Optional[AttitudeSeries]:
     for name in ("ATT", "AHR2"):
-        t = log.table(name)
-        if t is None or "Roll" not in t:
+        got = log.timed(name, "Roll")
+        if got is None:
             continue
-        tt = log.time_us(name, t)
-        if tt is None:
-            continue
+        t, tt = got
         t_us, roll, pitch, yaw = _sorted(tt, t["Roll"].astype(float), t["Pitch"].astype(float),
                                          t["Yaw"].astype(float), what=name, damage=log.damage)
         return AttitudeSeries(name, t_us, _quat_from_euler_deg(roll, pitch, yaw))
@@ -317,12 +321,10 @@ def _baro(log: _Log) -> Optional[BaroSeries]:
 
 
 def _gnss(log: _Log, rec: OnboardRecord) -> Optional[GnssSeries]:
-    t = log.table("GPS")
-    if t is None or "Alt" not in t:
+    got = log.timed("GPS", "Alt")
+    if got is None:
         return None
-    tt = log.time_us("GPS", t)
-    if tt is None:
-        return None
+    t, tt = got
     sel = _instance(t, "I", 0)
     tt = tt[sel]
     alt = t["Alt"].astype(float)[sel]
@@ -391,12 +393,10 @@ def _rangefinder(log: _Log) -> Optional[RangeSeries]:
             tt = tt[sel]
             name = "RFND[0]"
     else:
-        t = log.table("SONR")
-        if t is None or "DistCM" not in t:
+        got = log.timed("SONR", "DistCM")
+        if got is None:
             return None
-        tt = log.time_us("SONR", t)
-        if tt is None:
-            return None
+        t, tt = got
         dist = t["DistCM"].astype(float) / 100.0
         valid = np.ones(dist.size, dtype=bool)
         name = "SONR"
@@ -422,12 +422,10 @@ def _autopilot(log: _Log) -> Optional[AutopilotSeries]:
 
 
 def _ekf_height(log: _Log, name: str) -> Optional[AutopilotSeries]:
-    t = log.table(name)
-    if t is None or "PD" not in t:
+    got = log.timed(name, "PD")
+    if got is None:
         return None
-    tt = log.time_us(name, t)
-    if tt is None:
-        return None
+    t, tt = got
     sel = _instance(t, "C", 0)
     vel = _optional_velocity(t, "VD", -1.0, sel)
     t_us, up, vel = _sorted(tt[sel], -t["PD"].astype(float)[sel], vel, what=name, damage=log.damage)
@@ -435,12 +433,10 @@ def _ekf_height(log: _Log, name: str) -> Optional[AutopilotSeries]:
 
 
 def _ctun(log: _Log) -> Optional[AutopilotSeries]:
-    t = log.table("CTUN")
-    if t is None or "Alt" not in t:
+    got = log.timed("CTUN", "Alt")
+    if got is None:
         return None
-    tt = log.time_us("CTUN", t)
-    if tt is None:
-        return None
+    t, tt = got
     sel = np.ones(tt.size, dtype=bool)
     vel = _optional_velocity(t, "CRt", 0.01, sel) if "CRt" in t else _optional_velocity(t, "CRate", 0.01, sel)
     t_us, up, vel = _sorted(tt, t["Alt"].astype(float), vel, what="CTUN", damage=log.damage)
