@@ -11,6 +11,7 @@ import pytest
 from filterpy.kalman import KalmanFilter
 
 from mavnav.channel import GB, N_PAPER, Model, process_noise, transition
+from mavnav.epochs import EpochBuilder, EpochStart
 from mavnav.synthetic import Schedule, TrueSensors, paper_flight
 
 from estimator_helpers import config_for, run_channels
@@ -18,9 +19,25 @@ from estimator_helpers import config_for, run_channels
 SENSORS = TrueSensors(sigma_a_mps2=0.2, alpha_a_per_s=1.0, sigma_bb_m=1.0, gamma_bb_per_s=2.0, sigma_z_m=1.5)
 
 
-def augmented_reference(flight, model: Model, use_gnss: bool, sigma_z_m: float):
+def measured_noise(flight, cfg):
+    """``{t_us: (dv_var_m2ps2, baro_white_var_m2)}`` of the epochs the epoch
+    builder makes of ``flight``: the input noise it measures beyond the model."""
+    builder = EpochBuilder(cfg)
+    out = {}
+    for s in flight.samples:
+        for ep in builder.push(s):
+            if not isinstance(ep, EpochStart):
+                out[ep.t_us] = (ep.dv_var_m2ps2, ep.baro_white_var_m2)
+    return out
+
+
+def augmented_reference(flight, model: Model, use_gnss: bool, sigma_z_m: float, dv_var_at=None):
     """5-state augmented filter fed the raw samples directly (no EpochBuilder):
-    state [H, Vz, dH, da, u], baro z = H + dH + u with no white noise."""
+    state [H, Vz, dH, da, u], baro z = H + dH + u with no white noise. The
+    process noise adds ``dv_var_at[t_us]`` (the IMU scatter beyond the model
+    that the epoch builder measured for the step ending at ``t_us``) in the
+    same shape as the channel filter."""
+    dv_var_at = dv_var_at or {}
     g = model.gravity_mps2
     kf = None
     t_prev = None
@@ -51,7 +68,7 @@ def augmented_reference(flight, model: Model, use_gnss: bool, sigma_z_m: float):
         F[:4, :4] = transition(T)
         F[4, 4] = phi
         Q = np.zeros((5, 5))
-        Q[:4, :4] = process_noise(T, model)
+        Q[:4, :4] = process_noise(T, model, dv_var_at.get(s.t_us, 0.0))
         Q[4, 4] = model.sigma_bb_m**2 * (1 - phi * phi)
         kf.F, kf.Q = F, Q
         kf.B = np.array([[0.5 * T * T], [T], [0.0], [0.0], [0.0]])
@@ -78,7 +95,16 @@ def test_differencing_equals_augmented_filter(kind, irregular):
     model = Model.from_config(cfg)
     hist, _ = run_channels(flight, cfg, kinds=(kind,))
     mine = [(t, x, P) for t, x, P, out in hist[kind] if out is not None]
-    ref = augmented_reference(flight, model, use_gnss=(kind == "gnss"), sigma_z_m=SENSORS.sigma_z_m)
+    noise = measured_noise(flight, cfg)
+    # the simulated baro noise is the modelled u alone: the epoch builder
+    # recognises it and passes no white noise (the augmented form has none)
+    assert not any(white for _, white in noise.values())
+    # the simulated IMU noise is the modelled one: what the builder measures
+    # beyond it is small but not nothing, and enters both filters alike
+    assert sum(dv > 0.0 for dv, _ in noise.values()) > 100
+    dv_var_at = {t: dv for t, (dv, _) in noise.items()}
+    ref = augmented_reference(flight, model, use_gnss=(kind == "gnss"), sigma_z_m=SENSORS.sigma_z_m,
+                              dv_var_at=dv_var_at)
     assert len(mine) == len(ref) > 900
     if kind == "gnss":
         assert sum(r[3] for r in ref) > 150  # GNSS rows really exercised
@@ -99,6 +125,8 @@ def test_reference_catches_a_wrong_baro_noise():
     wrong = config_for(TrueSensors(**{**SENSORS.__dict__, "gamma_bb_per_s": SENSORS.gamma_bb_per_s * 1.05}),
                        height_prior="p0")
     hist, _ = run_channels(flight, wrong, kinds=("gnss",))
-    ref = augmented_reference(flight, Model.from_config(cfg), use_gnss=True, sigma_z_m=SENSORS.sigma_z_m)
+    dv_var_at = {t: dv for t, (dv, _) in measured_noise(flight, cfg).items()}
+    ref = augmented_reference(flight, Model.from_config(cfg), use_gnss=True, sigma_z_m=SENSORS.sigma_z_m,
+                              dv_var_at=dv_var_at)
     P_mine = hist["gnss"][-1][2][:N_PAPER, :N_PAPER]
     assert not np.allclose(P_mine, ref[-1][2], rtol=1e-6, atol=1e-10)

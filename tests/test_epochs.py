@@ -121,11 +121,19 @@ def test_a_lagging_imu_never_integrates_backwards():
         assert e.dv_mps == pytest.approx(1.0 * e.dt_s, abs=1e-9)
 
 
-def _epochs_with_imu(rate_hz, seed, duration_s=20.0, sigma=1.0):
+def _quiet_ins_config(sigma_a_mps2=1e-4):
+    """Defaults with an INS model whose own white noise is negligible, so the
+    measured scatter is all beyond the model."""
+    cfg = load_config(None)
+    ins = cfg.sensors.ins.model_copy(update={"sigma_a_mps2": sigma_a_mps2})
+    return cfg.model_copy(update={"sensors": cfg.sensors.model_copy(update={"ins": ins})})
+
+
+def _epochs_with_imu(rate_hz, seed, duration_s=20.0, sigma=1.0, cfg=None):
     import numpy as np
 
     rng_ = np.random.default_rng(seed)
-    b = EpochBuilder(load_config(None))
+    b = EpochBuilder(_quiet_ins_config() if cfg is None else cfg)
     items = []
     n_imu = int(duration_s * rate_hz)
     for k in range(n_imu):
@@ -162,6 +170,25 @@ def test_imu_scatter_variance_is_small_at_high_rates_and_dominates_at_telemetry_
     pred = var_pred[: blocks * 10].reshape(blocks, 10).sum(axis=1)
     ratio = float(np.mean(err ** 2) / np.mean(pred))
     assert 0.5 < ratio < 2.0
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_imu_scatter_within_the_modelled_ins_noise_adds_nothing(seed):
+    """The filters' process noise already carries the INS model's white noise
+    (per sample q_a(T)^2 = 2 sigma_a^2 / (alpha_a T)): samples scattered by
+    exactly that add (almost) nothing, samples scattered by twice its RMS add
+    the 3 q_a^2 beyond it."""
+    import numpy as np
+
+    from mavnav.channel import Model, accel_noise_q
+
+    cfg = load_config(None)
+    q = accel_noise_q(1.0 / 200.0, Model.from_config(cfg))  # 2 m/s^2 at 200 Hz
+    _, same = _epochs_with_imu(200.0, seed, sigma=q, cfg=cfg)
+    _, twice = _epochs_with_imu(200.0, seed, sigma=2.0 * q, cfg=cfg)
+    model_dv_var = q * q * 0.005 * 0.1  # the model's own, per 0.1 s epoch
+    assert np.median([v for _, v in same[50:]]) < 0.1 * model_dv_var
+    assert np.median([v for _, v in twice[50:]]) == pytest.approx(3.0 * model_dv_var, rel=0.3)
 
 
 def test_imu_silence_beyond_the_hold_limit_is_unknown_acceleration_not_a_replayed_sample():
@@ -218,18 +245,53 @@ def test_a_resent_baro_value_makes_no_epoch():
     assert len(eps) == 49 and all(e.dt_s == pytest.approx(0.2) for e in eps)
 
 
-@pytest.mark.parametrize("seed,sigma", [(1, 0.1), (2, 0.3), (3, 0.45)])
-def test_baro_white_noise_is_measured_from_the_samples(seed, sigma):
-    """A climbing vehicle, baro white noise sigma: the estimate is within 20 %
-    (a median of second differences: the climb and one spike do not move it)."""
+def _baro_with_gauss_markov(seed, white_m, cfg, dt_s=0.2, n=200, spike_at=None):
+    """A climbing vehicle whose baro carries the model's own Gauss-Markov noise
+    u (sigma_bb, gamma_bb of ``cfg``) plus white noise ``white_m``."""
     import numpy as np
 
     r = np.random.default_rng(seed)
-    b = EpochBuilder(load_config(None))
+    c = cfg.sensors.baro
+    phi = math.exp(-c.gamma_bb_per_s * dt_s)
+    u = c.sigma_bb_m * r.standard_normal()
     items = []
-    for k in range(200):
-        t = 0.2 * k
-        h = 2.0 * t + sigma * r.standard_normal() + (8.0 if k == 150 else 0.0)
+    for k in range(n):
+        t = dt_s * k
+        u = phi * u + c.sigma_bb_m * math.sqrt(1.0 - phi * phi) * r.standard_normal()
+        h = 2.0 * t + u + white_m * r.standard_normal() + (8.0 if k == spike_at else 0.0)
         items += [imu(t), baro(t, h=h)]
-    feed(b, items)
-    assert math.sqrt(b.baro_white_var_m2) == pytest.approx(sigma, rel=0.2)
+    return items
+
+
+@pytest.mark.parametrize("seed,sigma", [(1, 0.1), (2, 0.3), (3, 0.45)])
+def test_baro_white_noise_is_measured_from_the_samples(seed, sigma):
+    """A climbing vehicle, the modelled Gauss-Markov u and white noise sigma
+    on the baro: the white estimate is within 20 % (a median of second
+    differences less u's share: the climb and one spike do not move it)."""
+    import numpy as np
+
+    cfg = load_config(None)
+    b = EpochBuilder(cfg)
+    eps = [e for e in feed(b, _baro_with_gauss_markov(seed, sigma, cfg, n=300, spike_at=150))
+           if not isinstance(e, EpochStart)]
+    # the window holds 61 samples: the median over the last 240 epochs
+    # spans about four windows
+    white = np.array([e.baro_white_var_m2 for e in eps[-240:]])
+    assert math.sqrt(float(np.median(white))) == pytest.approx(sigma, rel=0.2)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_the_modelled_gauss_markov_baro_noise_is_not_counted_again_as_white(seed):
+    """A baro with only the model's u (here sigma_bb 1 m, gamma_bb 2 /s at
+    50 Hz, whose second differences look like 0.16 m of white noise): the
+    filters already model it, so no white noise is passed on."""
+    cfg = load_config(None)
+    baro_cfg = cfg.sensors.baro.model_copy(update={"sigma_bb_m": 1.0, "gamma_bb_per_s": 2.0})
+    cfg = cfg.model_copy(update={"sensors": cfg.sensors.model_copy(update={"baro": baro_cfg})})
+    b = EpochBuilder(cfg)
+    eps = [e for e in feed(b, _baro_with_gauss_markov(seed, 0.0, cfg, dt_s=0.02, n=1000))
+           if not isinstance(e, EpochStart)]
+    white = [e.baro_white_var_m2 for e in eps]
+    assert len(white) > 900
+    assert sum(v > 0.0 for v in white) < 0.02 * len(white)
+    assert max(white) < 0.1 ** 2
