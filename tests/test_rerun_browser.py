@@ -23,9 +23,9 @@ import pytest
 
 from mavnav import pipeline, synthetic
 from mavnav.cli.viewer_options import make_viewer_sinks
-from mavnav.config import Config
 from mavnav.sinks import rerun_blueprint as bp
 
+from estimator_helpers import config_for
 from test_rerun_sink import Capture, read_rrd
 
 CHROMIUM = "/usr/bin/chromium"
@@ -80,7 +80,11 @@ def test_web_viewer_shows_the_replay_in_chromium(tmp_path):
         assert sink.page_url and said == [f"mavnav: Rerun web viewer at {sink.page_url}"]
         flight = synthetic.paper_flight(seed=3, schedule=synthetic.Schedule(duration_s=20.0))
         capture = Capture()
-        summary = pipeline.run(flight.samples, Config(), [capture, sink], info={"source": "paper_flight(3)"})
+        # the filters told the simulated sensors' error model (the defaults
+        # are sized on real baros, far quieter than the paper's sigma_bb 1 m):
+        # a nominal flight, so the nominal lane is on screen
+        cfg = config_for(synthetic.TrueSensors())
+        summary = pipeline.run(flight.samples, cfg, [capture, sink], info={"source": "paper_flight(3)"})
         assert summary.sink_failures == {} and summary.epochs == 1000
 
         with sync_playwright() as p:
