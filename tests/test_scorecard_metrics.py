@@ -256,3 +256,39 @@ def test_score_run_holds_an_epoch_at_most_max_hold_s():
     t = np.array([0.0, 1.0, 10.0])  # a 9 s gap after a bad output
     s = sm.score_run([], t, np.array([10.0, 20.0, 10.0]), ["nominal"] * 3, TRUTH_T, TRUTH_H, max_hold_s=0.5)
     assert s.hazardous_s == pytest.approx(0.5)
+
+
+def test_integrity_families_build_valid_runs():
+    """Every family's run is a valid scenario (or a SITL injection) whose fault lies in its window."""
+    import integrity
+
+    assert {"descent_above_max", "takeoff_landing", "terrain_roof", "rng_frozen_descent", "accel_bias",
+            "gnss_wander", "slow_telemetry", "inflight_start", "gnss_step3", "baro_ramp", "rng_stuck"} <= set(
+        integrity.FAMILIES)
+    for fam in integrity.FAMILIES.values():
+        for seed in (1, 2):
+            b = fam.build(seed, {"long_minutes": 1.0})
+            fault = b.get("fault") if b.get("real") else (b["scenario"]["faults"] or [None])[0]
+            if not b.get("real"):
+                scenario_from_dict(b["scenario"])
+            if fam.expect is None:
+                assert fault is None, fam.name
+            else:
+                on, end = b["window"]
+                assert fault["onset_s"] == pytest.approx(on, abs=1e-3) and end > on, fam.name
+    roof = integrity.FAMILIES["terrain_roof"].build(3, {})
+    assert roof["scenario"]["terrain"][0]["from_s"] == pytest.approx(roof["window"][0], abs=1e-3)
+    assert [f.name for f in integrity.select("gnss_step*,terrain_roof")] == [
+        "gnss_step3", "gnss_step5", "gnss_step8", "terrain_roof"]
+    with pytest.raises(SystemExit):
+        integrity.select("no_such_family")
+
+
+def test_integrity_job_scores_every_contender():
+    import integrity
+
+    r = integrity.job({"family": "slow_telemetry", "seed": 3, "contenders": ["adaptive", "baseline"],
+                       "baseline_fail_s": 5.0})
+    assert set(r.scores) == {"adaptive", "baseline"} and r.note == "2 Hz" and r.span_s > 50.0
+    for s in r.scores.values():
+        assert not s["fault"] and 0.0 <= s["available_frac"] <= 1.0
