@@ -48,7 +48,7 @@ approach to 35 m and down to 2 m, even seeds a hover at 15 m) with GNSS,
 rangefinder and baro steps at 3/5/8 sigma for 10 s, GNSS and baro ramps at
 0.5 m/s for 12 s, an accelerometer bias of 0.3 m/s^2, a stuck rangefinder,
 and fault-free; the scenario files of issue 13 (descent from above the
-rangefinder's maximum, with and without a GNSS ramp; take-off and landing;
+rangefinder's maximum, alone, with a 12 s GNSS ramp and with one to the end; take-off and landing;
 a roof; a frozen rangefinder in a descent; GNSS wander; 2-4 Hz telemetry;
 in-flight start); long fault-free flights; and faults injected into the
 ArduPilot SITL log ``../shared/tlogs/sitl/copter_rangefinder_nominal.tlog``
@@ -212,6 +212,13 @@ def _descent_gnss_ramp(seed: int, opts: dict) -> dict:
     return {"scenario": d, "window": (on, on + RAMP_DURATION_S)}
 
 
+def _descent_gnss_ramp_to_end(seed: int, opts: dict) -> dict:
+    d = _rng_encoding(_yaml("px4_descent_above_rng_max"), seed)
+    on = _u(seed, "descent_gnss_ramp_to_end", 15.0, 25.0)
+    d["faults"] = [_fault("gnss_ramp", on, None, RAMP_RATE_MPS)]
+    return {"scenario": d, "window": (on, float(d["duration_s"]))}
+
+
 def _takeoff_landing(seed: int, opts: dict) -> dict:
     d = _rng_encoding(_yaml("px4_takeoff_landing"), seed)
     d["trajectory"]["heights_m"] = [0.0, round(_u(seed, "takeoff_landing", 4.0, 12.0), 1), 0.0]
@@ -322,6 +329,8 @@ def families() -> List[Family]:
                "(px4_descent_above_rng_max)", None, _descent),
         Family("descent_gnss_ramp", "the same descent with a GNSS ramp 0.5 m/s for 12 s", "gnss",
                _descent_gnss_ramp),
+        Family("descent_gnss_ramp_to_end", "the same descent with a GNSS ramp 0.5 m/s from 15-25 s to the end "
+               "(17-22 m)", "gnss", _descent_gnss_ramp_to_end),
         Family("takeoff_landing", "take-off to 4-12 m and landing through the rangefinder's 0.2 m min "
                "(px4_takeoff_landing)", None, _takeoff_landing),
         Family("terrain_roof", "hover at 12 m over a 3-6 m roof for 10 s (px4_roof_terrain): only the "
