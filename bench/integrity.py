@@ -1,77 +1,83 @@
-"""Integrity scorecard: Monte Carlo over fault kind x magnitude x seed, three contenders.
+"""Integrity scorecard: fault families x seeds, each run scored against its truth and expected verdict.
 
-Contenders, on the same samples in the same run:
+A *family* is a named group of runs: one flight and fault rule, several
+seeds, the truth, and the verdict a right monitor gives:
 
-* ``paper``: mavnav, ``monitor.mode: paper`` (the paper's Fig. 4 logic);
+* a **fault family** names the faulty source: it must alarm inside the
+  fault window, and no other sensor may be excluded;
+* a **nominal family** (range transitions, in-flight start, GNSS wander
+  within its v_acc, slow telemetry, fault-free flights) must give no alarm;
+* **terrain** (a roof under the rangefinder) may blame the rangefinder and
+  nothing else.
+
+Contenders, on the same samples (every log is read once by
+:class:`mavnav.ingest.TlogSource`):
+
 * ``adaptive``: mavnav, ``monitor.mode: adaptive`` (the default);
+* ``paper``: mavnav, ``monitor.mode: paper`` (the paper's Fig. 4 logic; cheap);
 * ``baseline``: ``bench/autopilot_baseline.py``, a small model of what
   ArduPilot EKF3 / PX4 EKF2 do with height (one filter, 5-sigma gates, stale
-  fallback, a source "fails" after 5 s of gate failures).
+  fallback, a source "fails" after 5 s of gate failures). It has no overall
+  state: every output it gives counts as offered for use.
 
-Every log is read once by :class:`mavnav.ingest.TlogSource`; the resulting
-list of samples is fed to all three, so they see identical data.
+The monitor is read **only through its public outputs**: per epoch
+(``EpochReport``) the vehicle time, ``height_fused_m`` and ``overall``; and
+the ``AlarmEvent`` list of the run summary (source, new and previous
+state). Filter noise config: the scenario's own (``Scenario.filter_sensors()``)
+for simulated flights, mavnav's defaults for the SITL log.
 
-Data
-----
-* **sim** (the fault grid): 60 s PX4 flights with the rates, sensors and
-  home of ``config/scenarios/px4_landing_nominal.yaml`` (IMU 100 Hz, baro
-  25 Hz, GNSS 10 Hz, rangefinder 20 Hz) but starting on the ground: odd
-  seeds an approach (take-off, climb to 35 m, hold, descend to 2 m), even
-  seeds a take-off and hover at 15 m. ``seed`` = 1..N, one fault per run,
-  onset drawn uniformly in [15, 30] s (vehicle time) from the seed. Filter
-  noise config: the scenario's own (``Scenario.filter_sensors()``), for all
-  three contenders. Each seed also runs fault-free.
-* **landing**: ``px4_landing_nominal.yaml`` as shipped (it starts in the air
-  at 35 m: the monitor is switched on in flight), fault-free, N/2 seeds.
-* **long**: fault-free PX4 flights of ``--long-minutes`` (hover at 15 m and
-  a step profile, alternately), for false alarms per hour and fault-free RMS.
-* **real**: the ArduPilot SITL log ``../shared/tlogs/sitl/copter_rangefinder_nominal.tlog``
-  (ArduCopter 4.3.7, 233 s) with faults injected by ``mavnav.sim.inject_bytes``,
-  onset drawn uniformly in [80, 200] s of its boot clock. Filter noise
-  config: mavnav's defaults (the SITL's sensor noise is not known); truth
-  from its ``.truth.csv`` (``true_alt_msl_m`` minus the home altitude the
-  log reports).
+Scores per run (``bench/scoremetrics.py``: ``score_run``): detected (an
+alarm of any source inside the fault window), time-to-alarm (first alarm
+minus onset), isolated (every source alarming at that instant is the
+fault's), wrong exclusions (a healthy sensor source entering alarm from the
+onset on; any time on a nominal run), false alarms (alarm transitions
+before the onset; on a nominal run every alarm of a source not allowed),
+hazardous (the fused output more than 3 m from truth while ``overall`` is
+nominal or caution), available (share of time with such a usable output).
+A run is *right* when all of these are right.
 
-Fault grid (per seed): GNSS step, rangefinder step (``rng_spikes`` with
-probability 1: every reading offset) and baro step at 3, 5 and 8 sigma of
-the channel difference; GNSS and baro ramps at 0.5 m/s; an accelerometer
-bias step of 0.3 m/s^2; a stuck rangefinder. Steps last 10 s, ramps 12 s
-(to 6 m).
+Step magnitudes are in sigma of the raw sensor difference, from the
+scenario's sensor model and independent of any monitor: GNSS
+``hypot(v_acc, baro sigma_bb)``, rangefinder ``hypot(sigma_m, sigma_bb)``,
+baro the larger of the two. Onsets are drawn from (seed, family name), so
+selecting families does not move them.
 
-"Sigma of the channel difference" is the monitor's own: in the fault-free
-run of the same seed, the adaptive monitor's comparison threshold divided
-by its ``k`` (``threshold = k sqrt(P_a + P_b - 2 P_ab)``, sensor-variance
-floor included), median over the 2 s before the onset. GNSS: the GNSS vs
-baro+INS pair (the paper's ``d1``); rangefinder: rangefinder vs baro+INS
-(``d2``); baro+INS: the larger of the two (a baro fault must stand out
-against both to be isolated 2-of-3).
-
-Metrics: ``bench/scoremetrics.py`` (detection: the first transition into
-``alarm`` of any source within the fault window; time-to-alarm from the
-onset; isolation: the blamed source is the fault's; false alarms per hour:
-alarm transitions on fault-free runs per hour of vehicle time; RMS of the
-fused height against truth on the 10 Hz truth grid, sample-and-hold,
-fault-free runs after the first 10 s, and inside fault windows).
+Families (``--list`` prints them): the grid flights of
+``px4_landing_nominal.yaml`` (60 s, PX4 rates, ground start; odd seeds an
+approach to 35 m and down to 2 m, even seeds a hover at 15 m) with GNSS,
+rangefinder and baro steps at 3/5/8 sigma for 10 s, GNSS and baro ramps at
+0.5 m/s for 12 s, an accelerometer bias of 0.3 m/s^2, a stuck rangefinder,
+and fault-free; the scenario files of issue 13 (descent from above the
+rangefinder's maximum, alone, with a 12 s GNSS ramp and with one to the end; take-off and landing;
+a roof; a frozen rangefinder in a descent; GNSS wander; 2-4 Hz telemetry;
+in-flight start); long fault-free flights; and faults injected into the
+ArduPilot SITL log ``../shared/tlogs/sitl/copter_rangefinder_nominal.tlog``
+(if present). The range families alternate the rangefinder's out-of-range
+encoding by seed (odd: signal_quality 1 "invalid"; even: 0 "unknown", the
+distance beyond its limits the only sign).
 
 Usage::
 
-    .venv/bin/python bench/integrity.py            # default size (a few minutes on 2 cores)
-    .venv/bin/python bench/integrity.py --quick    # tiny smoke run
-    .venv/bin/python bench/integrity.py --seeds 20 --real-seeds 5 --workers 2
+    .venv/bin/python bench/integrity.py                        # default: 6 seeds, all families
+    .venv/bin/python bench/integrity.py --quick                # 1 seed per family, short long flights
+    .venv/bin/python bench/integrity.py --families 'gnss_*,terrain_roof' --seeds 4 --workers 1
+    .venv/bin/python bench/integrity.py --contenders adaptive,baseline --json out/integrity.json
 """
 
 from __future__ import annotations
 
 import argparse
+import fnmatch
+import json
 import math
 import os
 import sys
 import tempfile
 import time
-from collections import defaultdict
-from dataclasses import dataclass, field
+import zlib
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 import yaml
@@ -85,116 +91,320 @@ from autopilot_baseline import BaselineConfig, run_baseline  # noqa: E402
 
 from mavnav.config import SensorsConfig, config_from_dict  # noqa: E402
 from mavnav.ingest import TlogSource  # noqa: E402
-from mavnav.monitor.levels import normal_k  # noqa: E402
 from mavnav.pipeline import run  # noqa: E402
 from mavnav.samples import ReferenceSet  # noqa: E402
 from mavnav.sim import Fault, inject_bytes, scenario_from_dict, simulate  # noqa: E402
 from mavnav.sim.simulate import read_truth_csv  # noqa: E402
 from mavnav.sinks.base import Sink  # noqa: E402
 
-CONTENDERS = ("paper", "adaptive", "baseline")
-SIM_SCENARIO = ROOT / "config" / "scenarios" / "px4_landing_nominal.yaml"
+CONTENDERS = ("adaptive", "paper", "baseline")
+SCENARIOS = ROOT / "config" / "scenarios"
+GRID_SCENARIO = SCENARIOS / "px4_landing_nominal.yaml"
 REAL_LOG = (ROOT / ".." / "shared" / "tlogs" / "sitl" / "copter_rangefinder_nominal.tlog").resolve()
 REAL_TRUTH = REAL_LOG.with_name("copter_rangefinder_nominal.truth.csv")
-SETTLE_S = 10.0  # fault-free RMS excludes the first seconds of a run (convergence)
 STEP_MULTS = (3.0, 5.0, 8.0)
-RAMP_RATE = 0.5
+RAMP_RATE_MPS = 0.5
 STEP_DURATION_S = 10.0
 RAMP_DURATION_S = 12.0
+HAZARD_M = 3.0
 
 
-# ---------------------------------------------------------------- fault grid
+# ---------------------------------------------------------------- families
 
 
 @dataclass(frozen=True)
-class Case:
-    """One row of the grid: a fault kind and a magnitude rule."""
+class Family:
+    """A named group of runs: ``build(seed)`` gives one run's flight, fault and window."""
 
-    label: str
-    kind: str
-    source: str
-    sigma_mult: Optional[float] = None  # magnitude = mult x sigma of the channel difference
-    magnitude: Optional[float] = None  # absolute magnitude (ramps, accel)
-    probability: Optional[float] = None
-    duration_s: float = STEP_DURATION_S
-    target: Optional[str] = None  # "step" or "ramp": which adaptive target it counts for
-
-
-def fault_cases() -> List[Case]:
-    out = []
-    for kind, src, name in (("gnss_step", "gnss", "gnss step"), ("rng_spikes", "rangefinder", "rng step"),
-                            ("baro_step", "baro_ins", "baro step")):
-        for m in STEP_MULTS:
-            out.append(Case(f"{name} {m:g}σ", kind, src, sigma_mult=m,
-                            probability=1.0 if kind == "rng_spikes" else None, target="step"))
-    out.append(Case(f"gnss ramp {RAMP_RATE:g} m/s", "gnss_ramp", "gnss", magnitude=RAMP_RATE,
-                    duration_s=RAMP_DURATION_S, target="ramp"))
-    out.append(Case(f"baro ramp {RAMP_RATE:g} m/s", "baro_ramp", "baro_ins", magnitude=RAMP_RATE,
-                    duration_s=RAMP_DURATION_S, target="ramp"))
-    out.append(Case("accel bias 0.3 m/s²", "accel_bias_step", "baro_ins", magnitude=0.3))
-    out.append(Case("rng stuck", "rng_stuck", "rangefinder"))
-    return out
+    name: str
+    text: str
+    expect: Optional[str]  # fault source group (sm.SOURCE_GROUPS), None: nominal
+    build: Callable[[int, dict], dict]
+    allowed: Tuple[str, ...] = ()  # sources that may alarm without penalty
+    group: str = "sim"  # "sim", "long" (longer flights), "real" (the SITL log)
+    cost: float = 1.0  # relative run time (60 s flight = 1)
 
 
-def sigma_for(case: Case, sig: Dict[str, float]) -> float:
-    if case.source == "gnss":
-        return sig["gnss"]
-    if case.source == "rangefinder":
-        return sig["rangefinder"]
-    return max(sig["gnss"], sig["rangefinder"])
+def _yaml(name: str) -> dict:
+    return yaml.safe_load((SCENARIOS / f"{name}.yaml").read_text())
 
 
-def make_fault(case: Case, onset_s: float, sig: Dict[str, float], seed: int) -> dict:
-    d = {"kind": case.kind, "onset_s": round(onset_s, 3), "duration_s": case.duration_s}
-    if case.sigma_mult is not None:
-        d["magnitude"] = round(case.sigma_mult * sigma_for(case, sig), 4)
-    elif case.magnitude is not None:
-        d["magnitude"] = case.magnitude
-    if case.probability is not None:
-        d["probability"] = case.probability
-    d["seed"] = seed
+def _u(seed: int, family: str, lo: float, hi: float, k: int = 0) -> float:
+    rng = np.random.default_rng([seed, zlib.crc32(family.encode()), k])
+    return float(rng.uniform(lo, hi))
+
+
+def grid_flight(seed: int) -> dict:
+    """The grid's flight (ground start, PX4 rates and sensors of px4_landing_nominal).
+
+    Odd seeds: an approach (take-off, climb to 35 m at 1.5 m/s, hold 8 s,
+    descend to 2 m); even seeds: take-off and hover at 15 m.
+    """
+    d = yaml.safe_load(GRID_SCENARIO.read_text())
+    d["faults"] = []
+    if seed % 2:
+        d["name"] = f"approach_{seed}"
+        d["trajectory"] = {"kind": "steps", "start_height_m": 0.0, "heights_m": [35.0, 2.0], "hold_s": 8.0,
+                           "vertical_speed_mps": 1.5, "heading_deg": 35.0}
+    else:
+        d["name"] = f"hover_{seed}"
+        d["trajectory"] = {"kind": "hover", "height_m": 15.0, "takeoff": True, "ground_s": 3.0,
+                           "climb_speed_mps": 2.0, "wander_m": 0.3, "heading_deg": 120.0}
     return d
 
 
-def onset_for(dataset: str, seed: int, case_index: int) -> float:
-    rng = np.random.default_rng([seed, 7919, case_index])
-    return float(rng.uniform(15.0, 30.0) if dataset == "sim" else rng.uniform(80.0, 200.0))
+def raw_sigmas(sensors: SensorsConfig) -> Dict[str, float]:
+    """Sigma of the raw sensor differences (m): the step unit, independent of any monitor."""
+    g = math.hypot(sensors.gnss.sigma_z_m, sensors.baro.sigma_bb_m)
+    r = math.hypot(sensors.rangefinder.sigma_m, sensors.baro.sigma_bb_m)
+    return {"gnss": g, "rangefinder": r, "baro": max(g, r), "ins": max(g, r)}
+
+
+def _fault(kind: str, onset_s: float, duration_s: Optional[float], magnitude: Optional[float] = None,
+           **extra) -> dict:
+    f = {"kind": kind, "onset_s": round(onset_s, 3)}
+    if duration_s is not None:
+        f["duration_s"] = duration_s
+    if magnitude is not None:
+        f["magnitude"] = round(magnitude, 4)
+    f.update(extra)
+    return f
+
+
+def _grid_fault_family(name: str, text: str, src: str, kind: str, *, mult: Optional[float] = None,
+                       magnitude: Optional[float] = None, duration_s: float = STEP_DURATION_S,
+                       extra: Optional[dict] = None) -> Family:
+    def build(seed: int, opts: dict) -> dict:
+        d = grid_flight(seed)
+        on = _u(seed, name, 15.0, 30.0)
+        mag = magnitude
+        if mult is not None:
+            sig = raw_sigmas(scenario_from_dict(d).filter_sensors())[src]
+            mag = mult * sig
+        f = _fault(kind, on, duration_s, mag, **(extra or {}))
+        d["faults"] = [f]
+        return {"scenario": d, "window": (on, on + duration_s)}
+    return Family(name, text, src, build)
+
+
+def _nominal_grid(seed: int, opts: dict) -> dict:
+    return {"scenario": grid_flight(seed)}
+
+
+def _rng_encoding(d: dict, seed: int) -> dict:
+    """Even seeds: the rangefinder reports no quality (0) and out-of-range readings only by distance."""
+    if seed % 2 == 0:
+        rf = d.setdefault("sensors", {}).setdefault("rangefinder", {})
+        rf.update(quality=0, out_of_range_quality=0)
+    return d
+
+
+def _descent(seed: int, opts: dict) -> dict:
+    d = _rng_encoding(_yaml("px4_descent_above_rng_max"), seed)
+    d["trajectory"]["heading_deg"] = round(_u(seed, "descent", 0.0, 360.0), 1)
+    return {"scenario": d}
+
+
+def _descent_gnss_ramp(seed: int, opts: dict) -> dict:
+    d = _rng_encoding(_yaml("px4_descent_above_rng_max"), seed)
+    on = _u(seed, "descent_gnss_ramp", 18.0, 28.0)
+    d["faults"] = [_fault("gnss_ramp", on, RAMP_DURATION_S, RAMP_RATE_MPS)]
+    return {"scenario": d, "window": (on, on + RAMP_DURATION_S)}
+
+
+def _descent_gnss_ramp_to_end(seed: int, opts: dict) -> dict:
+    d = _rng_encoding(_yaml("px4_descent_above_rng_max"), seed)
+    on = _u(seed, "descent_gnss_ramp_to_end", 15.0, 25.0)
+    d["faults"] = [_fault("gnss_ramp", on, None, RAMP_RATE_MPS)]
+    return {"scenario": d, "window": (on, float(d["duration_s"]))}
+
+
+def _takeoff_landing(seed: int, opts: dict) -> dict:
+    d = _rng_encoding(_yaml("px4_takeoff_landing"), seed)
+    d["trajectory"]["heights_m"] = [0.0, round(_u(seed, "takeoff_landing", 4.0, 12.0), 1), 0.0]
+    return {"scenario": d}
+
+
+def _roof(seed: int, opts: dict) -> dict:
+    d = _yaml("px4_roof_terrain")
+    on = _u(seed, "terrain_roof", 20.0, 30.0)
+    height = round(_u(seed, "terrain_roof", 3.0, 6.0, 1), 1)
+    d["terrain"] = [{"from_s": round(on, 3), "to_s": round(on + 10.0, 3), "height_m": height}]
+    return {"scenario": d, "window": (on, on + 10.0)}
+
+
+def _frozen_descent(seed: int, opts: dict) -> dict:
+    d = _yaml("px4_rng_frozen_descent")
+    on = _u(seed, "rng_frozen_descent", 10.0, 18.0)
+    d["faults"] = [_fault("rng_stuck", on, 10.0)]
+    return {"scenario": d, "window": (on, on + 10.0)}
+
+
+def _gnss_wander(seed: int, opts: dict) -> dict:
+    d = _yaml("px4_gnss_wander")
+    g = d["sensors"]["gnss"]
+    g["correlated_sigma_m"] = round(_u(seed, "gnss_wander", 0.3, 0.5) * g["v_acc_m"], 3)
+    g["correlated_tau_s"] = round(_u(seed, "gnss_wander", 100.0, 300.0, 1), 1)
+    if seed % 2 == 0:
+        d["trajectory"] = {"kind": "steps", "start_height_m": 0.0, "heights_m": [20.0, 8.0, 25.0, 12.0],
+                           "hold_s": 30.0, "vertical_speed_mps": 1.5}
+    return {"scenario": d}
+
+
+def _slow_telemetry(seed: int, opts: dict) -> dict:
+    d = _yaml("ardupilot_slow_telemetry")
+    r = (2.0, 3.0, 4.0)[seed % 3]
+    d["rates_hz"] = {k: (0 if v == 0 else r) for k, v in d["rates_hz"].items()}
+    if seed % 2 == 0:
+        d["trajectory"] = {"kind": "landing", "start_height_m": 30.0, "hold_s": 8.0, "glide_slope_deg": 10.0,
+                           "descent_speed_mps": 0.8, "flare_s": 6.0, "heading_deg": 300.0}
+    return {"scenario": d, "note": f"{r:g} Hz"}
+
+
+def _inflight(seed: int, opts: dict) -> dict:
+    if seed % 2:
+        d = _yaml("px4_inflight_start")
+        d["trajectory"]["height_m"] = 30.0
+    else:
+        d = _yaml("px4_landing_nominal")  # as shipped: the monitor starts with the vehicle at 35 m
+        d["faults"] = []
+    return {"scenario": d}
+
+
+def _long(seed: int, opts: dict) -> dict:
+    minutes = opts.get("long_minutes", 5.0)
+    d = yaml.safe_load(GRID_SCENARIO.read_text())
+    d["name"] = f"long_{seed}"
+    d["duration_s"] = minutes * 60.0
+    d["faults"] = []
+    if seed % 2:
+        d["trajectory"] = {"kind": "hover", "height_m": 15.0, "takeoff": True, "ground_s": 3.0,
+                           "wander_m": 0.5, "wander_period_s": 25.0}
+    else:
+        rng = np.random.default_rng([seed, 31])
+        n = int(minutes * 60 / 25) + 2
+        d["trajectory"] = {"kind": "steps", "start_height_m": 0.0,
+                           "heights_m": [float(round(h, 1)) for h in rng.uniform(3.0, 35.0, n)],
+                           "hold_s": 15.0, "vertical_speed_mps": 1.5}
+    return {"scenario": d}
+
+
+def _real_family(name: str, text: str, src: Optional[str], kind: Optional[str], *, mult: Optional[float] = None,
+                 magnitude: Optional[float] = None, duration_s: float = STEP_DURATION_S,
+                 extra: Optional[dict] = None) -> Family:
+    def build(seed: int, opts: dict) -> dict:
+        if kind is None:
+            return {"real": True}
+        on = _u(seed, name, 80.0, 200.0)
+        mag = magnitude
+        if mult is not None:
+            mag = mult * raw_sigmas(SensorsConfig())[src]
+        f = _fault(kind, on, duration_s, mag, seed=seed, **(extra or {}))
+        return {"real": True, "fault": f, "window": (on, on + duration_s)}
+    return Family(name, text, src, build, group="real", cost=2.0)
+
+
+def families() -> List[Family]:
+    out: List[Family] = []
+    for kind, src, short, extra in (("gnss_step", "gnss", "gnss", None),
+                                    ("rng_spikes", "rangefinder", "rng", {"probability": 1.0}),
+                                    ("baro_step", "baro", "baro", None)):
+        for m in STEP_MULTS:
+            out.append(_grid_fault_family(
+                f"{short}_step{m:g}", f"{short} step {m:g} sigma for {STEP_DURATION_S:g} s on the grid flights",
+                src, kind, mult=m, extra=extra))
+    out.append(_grid_fault_family("gnss_ramp", f"GNSS ramp {RAMP_RATE_MPS:g} m/s for {RAMP_DURATION_S:g} s "
+                                  "on the grid flights", "gnss", "gnss_ramp", magnitude=RAMP_RATE_MPS,
+                                  duration_s=RAMP_DURATION_S))
+    out.append(_grid_fault_family("baro_ramp", f"baro ramp {RAMP_RATE_MPS:g} m/s for {RAMP_DURATION_S:g} s "
+                                  "on the grid flights", "baro", "baro_ramp", magnitude=RAMP_RATE_MPS,
+                                  duration_s=RAMP_DURATION_S))
+    out.append(_grid_fault_family("accel_bias", "accelerometer bias step 0.3 m/s² for 10 s on the grid flights",
+                                  "ins", "accel_bias_step", magnitude=0.3))
+    out.append(_grid_fault_family("rng_stuck", "rangefinder stuck (last reading held) for 10 s on the grid "
+                                  "flights", "rangefinder", "rng_stuck"))
+    out.append(Family("fault_free", "the grid flights without a fault", None, _nominal_grid))
+    out += [
+        Family("descent_above_max", "descent from 55 m, above the rangefinder's 40 m max, to touchdown "
+               "(px4_descent_above_rng_max)", None, _descent),
+        Family("descent_gnss_ramp", "the same descent with a GNSS ramp 0.5 m/s for 12 s", "gnss",
+               _descent_gnss_ramp),
+        Family("descent_gnss_ramp_to_end", "the same descent with a GNSS ramp 0.5 m/s from 15-25 s to the end "
+               "(17-22 m)", "gnss", _descent_gnss_ramp_to_end),
+        Family("takeoff_landing", "take-off to 4-12 m and landing through the rangefinder's 0.2 m min "
+               "(px4_takeoff_landing)", None, _takeoff_landing),
+        Family("terrain_roof", "hover at 12 m over a 3-6 m roof for 10 s (px4_roof_terrain): only the "
+               "rangefinder may be blamed", None, _roof, allowed=("rangefinder",)),
+        Family("rng_frozen_descent", "rangefinder frozen for 10 s while descending from 25 m "
+               "(px4_rng_frozen_descent)", "rangefinder", _frozen_descent),
+        Family("gnss_wander", "180 s; GNSS Gauss-Markov wander 0.3-0.5 x v_acc, tau 100-300 s, inside "
+               "its v_acc (px4_gnss_wander)", None, _gnss_wander, cost=3.0),
+        Family("slow_telemetry", "every stream at 2, 3 or 4 Hz (ardupilot_slow_telemetry): degraded or "
+               "unavailable, never a sensor", None, _slow_telemetry, cost=0.3),
+        Family("inflight_start", "the monitor connects with the vehicle at 30-35 m (px4_inflight_start, "
+               "px4_landing_nominal)", None, _inflight),
+        Family("long_fault_free", "fault-free flights of --long-minutes (hover, height steps)", None, _long,
+               group="long", cost=5.0),
+    ]
+    out += [
+        _real_family("real_fault_free", "the ArduPilot SITL log as recorded", None, None),
+        _real_family("real_gnss_step5", "SITL log + GNSS step 5 sigma (mavnav default noise) for 10 s",
+                     "gnss", "gnss_step", mult=5.0),
+        _real_family("real_baro_step5", "SITL log + baro step 5 sigma for 10 s", "baro", "baro_step", mult=5.0),
+        _real_family("real_rng_step5", "SITL log + rangefinder step 5 sigma for 10 s", "rangefinder",
+                     "rng_spikes", mult=5.0, extra={"probability": 1.0}),
+        _real_family("real_gnss_ramp", "SITL log + GNSS ramp 0.5 m/s for 12 s", "gnss", "gnss_ramp",
+                     magnitude=RAMP_RATE_MPS, duration_s=RAMP_DURATION_S),
+        _real_family("real_rng_stuck", "SITL log + rangefinder stuck for 10 s", "rangefinder", "rng_stuck"),
+    ]
+    return out
+
+
+FAMILIES: Dict[str, Family] = {f.name: f for f in families()}
+
+
+def select(patterns: Optional[str]) -> List[Family]:
+    """Families whose names match any comma-separated glob (all if None)."""
+    if not patterns:
+        return list(FAMILIES.values())
+    pats = [p.strip() for p in patterns.split(",") if p.strip()]
+    bad = [p for p in pats if not any(fnmatch.fnmatchcase(n, p) for n in FAMILIES)]
+    if bad:
+        raise SystemExit(f"--families: no family matches {', '.join(bad)} (see --list)")
+    return [f for n, f in FAMILIES.items() if any(fnmatch.fnmatchcase(n, p) for p in pats)]
 
 
 # ---------------------------------------------------------------- running the contenders
 
 
 class _Collect(Sink):
-    """Fused height per epoch, and the comparison sigmas (threshold / k)."""
+    """Per epoch, the public outputs: vehicle time, fused height, overall state."""
 
     name = "collect"
 
-    def __init__(self, k: float) -> None:
-        self.k = k
+    def __init__(self) -> None:
         self.t: List[float] = []
         self.h: List[float] = []
-        self.sig_g: List[float] = []  # gnss vs baro+INS
-        self.sig_r: List[float] = []  # rangefinder vs baro+INS
+        self.overall: List[str] = []
 
     def epoch(self, r) -> None:
-        self.t.append(r.t_s)
+        self.t.append(r.t_us * 1e-6)
         self.h.append(r.height_fused_m)
-        p_gb, p_rb = r.pairs[1], r.pairs[2]
-        self.sig_g.append(p_gb.threshold_m / self.k if p_gb.valid else math.nan)
-        self.sig_r.append(p_rb.threshold_m / self.k if p_rb.valid else math.nan)
+        self.overall.append(r.overall)
 
 
-def run_all(samples: list, sensors: SensorsConfig, bcfg: BaselineConfig) -> Dict[str, dict]:
-    """The three contenders on one list of samples: heights and alarms each."""
+def run_contenders(samples: list, sensors: SensorsConfig, names: Sequence[str], bcfg: BaselineConfig) -> Dict[str, dict]:
     out = {}
-    for mode in ("paper", "adaptive"):
-        cfg = config_from_dict({"sensors": sensors.model_dump(), "monitor": {"mode": mode}})
-        sink = _Collect(normal_k(cfg.monitor.false_alarm_prob))
+    for name in names:
+        if name == "baseline":
+            b = run_baseline(samples, sensors, bcfg)
+            out[name] = {"t": b.t_s, "h": b.height_m, "overall": None, "alarms": list(b.alarms)}
+            continue
+        cfg = config_from_dict({"sensors": sensors.model_dump(), "monitor": {"mode": name}})
+        sink = _Collect()
         summary = run(samples, cfg, [sink])
-        out[mode] = {"t": np.asarray(sink.t), "h": np.asarray(sink.h, dtype=float), "alarms": list(summary.alarms),
-                     "sig_g": np.asarray(sink.sig_g), "sig_r": np.asarray(sink.sig_r)}
-    b = run_baseline(samples, sensors, bcfg)
-    out["baseline"] = {"t": b.t_s, "h": b.height_m, "alarms": b.alarms}
+        out[name] = {"t": np.asarray(sink.t), "h": np.asarray(sink.h, dtype=float), "overall": sink.overall,
+                     "alarms": list(summary.alarms)}
     return out
 
 
@@ -208,409 +418,243 @@ def ingest(data: bytes) -> list:
         os.unlink(path)
 
 
-def sample_span_s(samples: list) -> float:
-    ts = [s.t_us for s in samples if getattr(s, "t_us", None) is not None]
-    return (max(ts) - min(ts)) * 1e-6 if ts else 0.0
-
-
-# ---------------------------------------------------------------- one job
-
-
-@dataclass
-class JobResult:
-    dataset: str  # "sim", "long", "real"
-    seed: int
-    case: Optional[str]  # None: fault-free
-    fault: Optional[dict]
-    span_s: float
-    per: Dict[str, dict] = field(default_factory=dict)  # contender -> metrics
-    sigmas: Optional[dict] = None  # fault-free runs: (t, sig_g, sig_r) of the adaptive monitor
-    wall_s: float = 0.0
-
-
-def _load_sim_dict() -> dict:
-    return yaml.safe_load(SIM_SCENARIO.read_text())
-
-
-def base_flight(seed: int) -> dict:
-    """The fault grid's flight (ground start, PX4 rates and sensors of px4_landing_nominal).
-
-    Odd seeds: an approach (take-off, climb to 35 m at 1.5 m/s, hold 8 s,
-    descend to 2 m); even seeds: take-off and hover at 15 m.
-    """
-    d = _load_sim_dict()
-    d["faults"] = []
-    if seed % 2:
-        d["name"] = f"approach_{seed}"
-        d["trajectory"] = {"kind": "steps", "start_height_m": 0.0, "heights_m": [35.0, 2.0], "hold_s": 8.0,
-                           "vertical_speed_mps": 1.5, "heading_deg": 35.0}
-    else:
-        d["name"] = f"hover_{seed}"
-        d["trajectory"] = {"kind": "hover", "height_m": 15.0, "takeoff": True, "ground_s": 3.0,
-                           "climb_speed_mps": 2.0, "wander_m": 0.3, "heading_deg": 120.0}
-    return d
-
-
-def _long_dict(seed: int, minutes: float) -> dict:
-    d = _load_sim_dict()
-    d["name"] = f"long_{seed}"
-    d["duration_s"] = minutes * 60.0
-    d["faults"] = []
-    if seed % 2:
-        d["trajectory"] = {"kind": "hover", "height_m": 15.0, "takeoff": True, "ground_s": 3.0,
-                           "wander_m": 0.5, "wander_period_s": 25.0}
-    else:
-        rng = np.random.default_rng([seed, 31])
-        n = int(minutes * 60 / 25) + 2
-        d["trajectory"] = {"kind": "steps", "start_height_m": 0.0,
-                           "heights_m": [float(round(h, 1)) for h in rng.uniform(3.0, 35.0, n)],
-                           "hold_s": 15.0, "vertical_speed_mps": 1.5}
-    return d
-
-
-def scenario_dict(dataset: str, seed: int, long_minutes: float = 10.0) -> dict:
-    if dataset == "sim":
-        return base_flight(seed)
-    if dataset == "landing":
-        d = _load_sim_dict()  # px4_landing_nominal as shipped: starts in the air at 35 m
-        d["faults"] = []
-        return d
-    return _long_dict(seed, long_minutes)
-
-
 def _truth_real(samples: list) -> Tuple[np.ndarray, np.ndarray]:
     tr = read_truth_csv(REAL_TRUTH)
-    ref = None
-    for s in samples:
-        if isinstance(s, ReferenceSet) and s.alt_ref_msl_m is not None:
-            ref = s.alt_ref_msl_m
-            break
+    ref = next((s.alt_ref_msl_m for s in samples if isinstance(s, ReferenceSet) and s.alt_ref_msl_m is not None), None)
     if ref is None:
         raise RuntimeError("the real log carries no home altitude")
     return np.asarray(tr["t_s"], dtype=float), np.asarray(tr["true_alt_msl_m"], dtype=float) - ref
 
 
-def job(spec: dict) -> JobResult:
+@dataclass
+class RunResult:
+    family: str
+    seed: int
+    fault: Optional[dict]
+    window: Optional[Tuple[float, float]]
+    note: str
+    span_s: float
+    scores: Dict[str, dict] = field(default_factory=dict)  # contender -> RunScore as a dict
+    alarms: Dict[str, list] = field(default_factory=dict)  # contender -> [(t_s, source, previous, state, reason)]
+    wall_s: float = 0.0
+
+
+def job(spec: dict) -> RunResult:
     t_wall = time.perf_counter()
-    dataset, seed = spec["dataset"], spec["seed"]
-    fault = spec.get("fault")
-    bcfg = BaselineConfig(fail_s=spec.get("baseline_fail_s", 5.0))
-    if dataset in ("sim", "long", "landing"):
-        d = scenario_dict(dataset, seed, spec["long_minutes"])
-        d["faults"] = [] if fault is None else [{k: v for k, v in fault.items() if k != "seed"}]
-        scn = scenario_from_dict(d)
-        res = simulate(scn, seed=seed)
-        samples = ingest(res.tlog)
-        sensors = scn.filter_sensors()
-        if spec.get("rng_scale_frac") is not None:  # override of the rangefinder's scale-error sigma
-            sensors = sensors.model_copy(update={"rangefinder": sensors.rangefinder.model_copy(
-                update={"scale_sigma_frac": spec["rng_scale_frac"]})})
-        t_truth = np.asarray(res.truth["t_s"], dtype=float)
-        h_truth = np.asarray(res.truth["true_height_ref_m"], dtype=float)
-    else:
+    fam = FAMILIES[spec["family"]]
+    seed = spec["seed"]
+    b = fam.build(seed, spec)
+    if b.get("real"):
         data = REAL_LOG.read_bytes()
+        fault = b.get("fault")
         if fault is not None:
-            data, _report = inject_bytes(data, [Fault.model_validate(fault)])
+            data, _ = inject_bytes(data, [Fault.model_validate(fault)])
         samples = ingest(data)
         sensors = SensorsConfig()
         t_truth, h_truth = _truth_real(samples)
-    outs = run_all(samples, sensors, bcfg)
-    r = JobResult(dataset, seed, spec.get("case"), fault, sample_span_s(samples))
+    else:
+        scn = scenario_from_dict(b["scenario"])
+        fault = b["scenario"]["faults"][0] if b["scenario"].get("faults") else None
+        res = simulate(scn, seed=seed)
+        samples = ingest(res.tlog)
+        sensors = scn.filter_sensors()
+        t_truth = np.asarray(res.truth["t_s"], dtype=float)
+        h_truth = np.asarray(res.truth["true_height_ref_m"], dtype=float)
+    outs = run_contenders(samples, sensors, spec["contenders"], BaselineConfig(fail_s=spec["baseline_fail_s"]))
+    ts = [s.t_us for s in samples if getattr(s, "t_us", None) is not None]
+    r = RunResult(fam.name, seed, fault, b.get("window"), b.get("note", ""),
+                  (max(ts) - min(ts)) * 1e-6 if ts else 0.0)
+    expected = sm.SOURCE_GROUPS[fam.expect] if fam.expect else ()
     for name, o in outs.items():
-        m: dict = {"alarms": [(a.t_s, a.source, a.state, a.previous, a.reason) for a in sm.alarm_onsets(o["alarms"])]}
-        if fault is None:
-            e, nan = sm.height_errors(o["t"], o["h"], t_truth, h_truth, windows=[(t_truth[0] + SETTLE_S
-                                                                                  if dataset != "real" else -1e9, 1e18)])
-            m["ff_ss"], m["ff_n"], m["ff_nan"] = float(np.sum(e * e)), int(e.size), nan
-            m["fa"] = sm.false_alarms(o["alarms"])
-        else:
-            on, end = fault["onset_s"], fault["onset_s"] + fault["duration_s"]
-            det = sm.detect(o["alarms"], on, end, spec["source"])
-            m["det"] = det
-            e, nan = sm.height_errors(o["t"], o["h"], t_truth, h_truth, windows=[(on, end)])
-            m["f_ss"], m["f_n"], m["f_nan"] = float(np.sum(e * e)), int(e.size), nan
-            m["f_max"] = float(np.max(np.abs(e))) if e.size else math.nan
-        r.per[name] = m
-    if fault is None:
-        a = outs["adaptive"]
-        r.sigmas = {"t": a["t"][::5], "gnss": a["sig_g"][::5], "rangefinder": a["sig_r"][::5]}
+        sc = sm.score_run(o["alarms"], o["t"], o["h"], o["overall"], t_truth, h_truth, window=b.get("window"),
+                          expected=expected, allowed=fam.allowed, hazard_m=HAZARD_M)
+        d = asdict(sc)
+        d["right"], d["hazardous"] = sc.right, sc.hazardous
+        r.scores[name] = d
+        r.alarms[name] = [(round(a.t_s, 3), a.source, a.previous, a.state, a.reason)
+                          for a in sm.alarm_onsets(o["alarms"])]
     r.wall_s = time.perf_counter() - t_wall
     return r
 
 
-def sigma_at(sig: dict, onset_s: float) -> Dict[str, float]:
-    t = sig["t"]
-    m = (t >= onset_s - 2.0) & (t <= onset_s)
-    out = {}
-    for k in ("gnss", "rangefinder"):
-        v = sig[k][m]
-        v = v[np.isfinite(v)]
-        if v.size == 0:  # fall back to the whole run
-            v = sig[k][np.isfinite(sig[k])]
-        out[k] = float(np.median(v)) if v.size else math.nan
-    return out
-
-
-# ---------------------------------------------------------------- driver
-
-
-def run_jobs(specs: List[dict], workers: int) -> List[JobResult]:
+def run_jobs(specs: List[dict], workers: int) -> List[RunResult]:
     if workers <= 1:
         return [job(s) for s in specs]
     import multiprocessing as mp
 
-    ctx = mp.get_context("fork")
-    with ctx.Pool(workers) as pool:
-        return list(pool.imap(job, specs, chunksize=1))
+    specs = sorted(specs, key=lambda s: -FAMILIES[s["family"]].cost)  # long runs first
+    with mp.get_context("fork").Pool(workers) as pool:
+        return list(pool.imap_unordered(job, specs, chunksize=1))
 
 
-def fmt(v: float, nd: int = 2, unit: str = "") -> str:
-    if v is None or not (v == v):
+# ---------------------------------------------------------------- aggregation and report
+
+
+def fmt(v, nd: int = 2) -> str:
+    if v is None or (isinstance(v, float) and not (v == v)):
         return "-"
-    if math.isinf(v):
-        return "inf"
-    return f"{v:.{nd}f}{unit}"
+    return f"{v:.{nd}f}"
 
 
-@dataclass
-class Agg:
-    ttas: List[float] = field(default_factory=list)
-    n: int = 0
-    detected: int = 0
-    isolated: int = 0
-    ss: float = 0.0
-    cnt: int = 0
-    nan: int = 0
-    mags: List[float] = field(default_factory=list)
-    max_err: float = 0.0
+def aggregate(rows: List[RunResult], name: str, fam: Family) -> dict:
+    sc = [r.scores[name] for r in rows]
+    n = len(sc)
+    ttas = [s["tta_s"] for s in sc if s["detected"]]
+    med = sm.tta_stats(ttas)[0]
+    alarmed: Dict[str, int] = {}
+    for s in sc:
+        for src in s["alarmed"]:
+            alarmed[src] = alarmed.get(src, 0) + 1
+    avail = [s["available_frac"] for s in sc if s["available_frac"] == s["available_frac"]]
+    return {
+        "runs": n,
+        "fault": fam.expect is not None,
+        "detected": sum(s["detected"] for s in sc),
+        "tta_median_s": med,
+        "tta_within_1s": sum(1 for s in sc if s["detected"] and s["tta_s"] <= 1.0),
+        "isolated": sum(1 for s in sc if s["detected"] and s["isolated"]),
+        "wrong_exclusion_runs": sum(1 for s in sc if s["wrong_exclusions"]),
+        "hazardous_runs": sum(1 for s in sc if s["hazardous"]),
+        "hazardous_s": float(sum(s["hazardous_s"] for s in sc)),
+        "max_usable_error_m": float(max((s["max_usable_error_m"] for s in sc
+                                         if s["max_usable_error_m"] == s["max_usable_error_m"]), default=math.nan)),
+        "false_alarms": sum(s["false_alarms"] for s in sc),
+        "available_pct": 100.0 * float(np.mean(avail)) if avail else math.nan,
+        "right": sum(1 for s in sc if s["right"]),
+        "alarmed_runs_by_source": dict(sorted(alarmed.items())),
+    }
+
+
+def family_table(fam: Family, rows: List[RunResult], names: Sequence[str]) -> Tuple[List[str], Dict[str, dict]]:
+    exp = "no alarm" if fam.expect is None else f"alarm on {'/'.join(sm.SOURCE_GROUPS[fam.expect])}"
+    if fam.allowed:
+        exp += f" ({', '.join(fam.allowed)} may alarm)"
+    notes = sorted({r.note for r in rows if r.note})
+    lines = [f"### {fam.name}", "", f"{fam.text}. Expected: {exp}. Seeds {', '.join(str(r.seed) for r in sorted(rows, key=lambda r: r.seed))}"
+             + (f" ({', '.join(notes)})" if notes else "") + ".", ""]
+    lines.append("| contender | runs | detected | TTA med s | TTA ≤ 1 s | isolated | wrong excl | hazardous (s) "
+                 "| false alarms | avail % | right | alarmed (runs) |")
+    lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    aggs = {}
+    for name in names:
+        a = aggregate(rows, name, fam)
+        aggs[name] = a
+        n = a["runs"]
+        if a["fault"]:
+            det = f"{a['detected']}/{n}"
+            tta, t1, iso = fmt(a["tta_median_s"]), f"{a['tta_within_1s']}/{n}", f"{a['isolated']}/{a['detected']}"
+        else:
+            det, tta, t1, iso = "-", "-", "-", "-"
+        al = ", ".join(f"{k} {v}" for k, v in a["alarmed_runs_by_source"].items()) or "none"
+        lines.append(f"| {name} | {n} | {det} | {tta} | {t1} | {iso} | {a['wrong_exclusion_runs']} | "
+                     f"{a['hazardous_runs']} ({fmt(a['hazardous_s'], 1)}) | {a['false_alarms']} | "
+                     f"{fmt(a['available_pct'], 0)} | **{a['right']}/{n}** | {al} |")
+    return lines, aggs
+
+
+def totals_table(all_aggs: Dict[str, Dict[str, dict]], names: Sequence[str]) -> List[str]:
+    lines = ["### totals", "", "Runs right per family (right/runs), then per contender over every family.", ""]
+    lines.append("| family | " + " | ".join(names) + " |")
+    lines.append("|---|" + "---|" * len(names))
+    for fam, aggs in all_aggs.items():
+        lines.append(f"| {fam} | " + " | ".join(f"{aggs[n]['right']}/{aggs[n]['runs']}" for n in names) + " |")
+    lines.append("")
+    lines.append("| contender | families all right | runs right | fault runs detected | isolated / detected "
+                 "| TTA ≤ 1 s | wrong-exclusion runs | hazardous runs (s) | false alarms |")
+    lines.append("|---|---|---|---|---|---|---|---|---|")
+    for n in names:
+        A = [aggs[n] for aggs in all_aggs.values()]
+        fa = [a for a in A if a["fault"]]
+        lines.append(
+            f"| {n} | {sum(1 for a in A if a['right'] == a['runs'])}/{len(A)} | "
+            f"{sum(a['right'] for a in A)}/{sum(a['runs'] for a in A)} | "
+            f"{sum(a['detected'] for a in fa)}/{sum(a['runs'] for a in fa)} | "
+            f"{sum(a['isolated'] for a in fa)}/{sum(a['detected'] for a in fa)} | "
+            f"{sum(a['tta_within_1s'] for a in fa)}/{sum(a['runs'] for a in fa)} | "
+            f"{sum(a['wrong_exclusion_runs'] for a in A)} | "
+            f"{sum(a['hazardous_runs'] for a in A)} ({fmt(sum(a['hazardous_s'] for a in A), 1)}) | "
+            f"{sum(a['false_alarms'] for a in A)} |")
+    return lines
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--seeds", type=int, default=6, help="simulated seeds per fault case (default 6)")
-    ap.add_argument("--real-seeds", type=int, default=2, help="injections per fault case into the SITL log (default 2)")
-    ap.add_argument("--long-runs", type=int, default=4, help="long fault-free simulated flights (default 4)")
-    ap.add_argument("--long-minutes", type=float, default=10.0, help="minutes per long flight (default 10)")
+    ap.add_argument("--families", default=None,
+                    help="comma-separated globs of family names (default: all; --list shows them)")
+    ap.add_argument("--list", action="store_true", help="list the families and exit")
+    ap.add_argument("--seeds", type=int, default=6, help="seeds per family (default 6; long and real: a third)")
+    ap.add_argument("--long-minutes", type=float, default=5.0, help="minutes per long fault-free flight (default 5)")
+    ap.add_argument("--contenders", default=",".join(CONTENDERS),
+                    help=f"comma-separated, from {', '.join(CONTENDERS)} (default: all three)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--baseline-fail-s", type=float, default=5.0,
                     help="baseline: gate failures this long = source failure (EKF3/EKF2: 5 s)")
-    ap.add_argument("--rng-scale-frac", type=float, default=None,
-                    help="sim only: override rangefinder.scale_sigma_frac of Scenario.filter_sensors() "
-                         "(which keeps mavnav's default 0.03 though the simulated rangefinder has no scale error)")
-    ap.add_argument("--quick", action="store_true", help="tiny run: 1 seed, 1 injection, 1 short long flight")
-    ap.add_argument("--no-real", action="store_true", help="skip the injected SITL log")
+    ap.add_argument("--quick", action="store_true", help="smoke run: 1 seed per family, 1-minute long flights")
+    ap.add_argument("--json", dest="json_path", default=None, help="write every run and every aggregate here")
     args = ap.parse_args(argv)
+    if args.list:
+        for f in FAMILIES.values():
+            exp = "nominal" if f.expect is None else f.expect
+            print(f"{f.name:<20} {f.group:<5} {exp:<12} {f.text}")
+        return 0
+    names = [n.strip() for n in args.contenders.split(",") if n.strip()]
+    bad = [n for n in names if n not in CONTENDERS]
+    if bad or not names:
+        raise SystemExit(f"--contenders: unknown {', '.join(bad) or '(none)'}; choose from {', '.join(CONTENDERS)}")
     if args.quick:
-        args.seeds, args.real_seeds, args.long_runs, args.long_minutes = 1, 0, 1, 2.0
-    if not REAL_LOG.exists():
-        print(f"note: {REAL_LOG} not found: the real-log part is skipped")
-        args.no_real = True
-    t0 = time.perf_counter()
-    cases = fault_cases()
-    common = {"baseline_fail_s": args.baseline_fail_s, "long_minutes": args.long_minutes,
-              "rng_scale_frac": args.rng_scale_frac}
-
-    # phase 1: fault-free runs (false alarms, fault-free RMS, the sigmas that scale the steps)
-    specs = [dict(common, dataset="sim", seed=s) for s in range(1, args.seeds + 1)]
-    specs += [dict(common, dataset="landing", seed=s) for s in range(1, max(1, args.seeds // 2) + 1)]
-    specs += [dict(common, dataset="long", seed=1000 + s) for s in range(1, args.long_runs + 1)]
-    if not args.no_real:
-        specs.append(dict(common, dataset="real", seed=0))
-    free = run_jobs(specs, args.workers)
-    sig_by = {(r.dataset, r.seed): r.sigmas for r in free if r.dataset in ("sim", "real")}
-
-    # phase 2: fault runs
+        args.seeds, args.long_minutes = 1, 1.0
+    fams = select(args.families)
+    if not REAL_LOG.exists() and any(f.group == "real" for f in fams):
+        print(f"note: {REAL_LOG} not found: the real-log families are skipped")
+        fams = [f for f in fams if f.group != "real"]
     specs = []
-    datasets = [("sim", range(1, args.seeds + 1))]
-    if not args.no_real and args.real_seeds > 0:
-        datasets.append(("real", range(1, args.real_seeds + 1)))
-    for dataset, seeds in datasets:
-        for seed in seeds:
-            sig_src = sig_by[("sim", seed)] if dataset == "sim" else sig_by[("real", 0)]
-            for ci, case in enumerate(cases):
-                on = onset_for(dataset, seed, ci)
-                sig = sigma_at(sig_src, on)
-                f = make_fault(case, on, sig, seed)
-                specs.append(dict(common, dataset=dataset, seed=seed, case=case.label, source=case.source,
-                                  fault=f, sigma=sigma_for(case, sig)))
-    faulted = run_jobs(specs, args.workers)
+    for f in fams:
+        n = args.seeds if f.group == "sim" else max(1, args.seeds // 3)
+        for seed in range(1, n + 1):
+            specs.append({"family": f.name, "seed": seed, "contenders": names, "long_minutes": args.long_minutes,
+                          "baseline_fail_s": args.baseline_fail_s})
+    t0 = time.perf_counter()
+    results = run_jobs(specs, args.workers)
     wall = time.perf_counter() - t0
-    report(args, cases, free, faulted, wall)
+
+    P = print
+    P(f"# mavnav integrity scorecard by family ({len(specs)} runs x {len(names)} contenders, "
+      f"{wall:.0f} s wall, {args.workers} worker(s))")
+    P("")
+    P(f"Contenders: {', '.join(names)}. Read through public outputs only (EpochReport overall, "
+      f"height_fused_m; AlarmEvent). Hazardous: fused output > {HAZARD_M:g} m from truth while overall is "
+      "nominal or caution (baseline: always offered). Step sigma: raw sensor difference from the sensor model.")
+    P("")
+    all_aggs: Dict[str, Dict[str, dict]] = {}
+    for f in fams:
+        rows = [r for r in results if r.family == f.name]
+        lines, aggs = family_table(f, rows, names)
+        all_aggs[f.name] = aggs
+        P("\n".join(lines))
+        P("")
+    P("\n".join(totals_table(all_aggs, names)))
+    if args.json_path:
+        payload = {
+            "args": {k: v for k, v in vars(args).items()},
+            "wall_s": wall,
+            "families": {f.name: {"text": f.text, "expect": f.expect, "allowed": list(f.allowed), "group": f.group,
+                                  "contenders": all_aggs[f.name]} for f in fams},
+            "runs": [asdict(r) for r in sorted(results, key=lambda r: (r.family, r.seed))],
+        }
+        Path(args.json_path).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json_path).write_text(json.dumps(payload, indent=1, default=_json_default) + "\n")
+        P(f"\nJSON: {args.json_path}")
     return 0
 
 
-def report(args, cases: List[Case], free: List[JobResult], faulted: List[JobResult], wall: float) -> None:
-    P = print
-    case_by = {c.label: c for c in cases}
-    P("=" * 100)
-    P("mavnav integrity scorecard: paper vs adaptive vs autopilot baseline (EKF3/EKF2-like, "
-      f"5-sigma gates, fail after {args.baseline_fail_s:g} s)")
-    P(f"sim: 60 s ground-start approach/hover flights with the rates, sensors and home of "
-      f"{SIM_SCENARIO.relative_to(ROOT)} (PX4), seeds 1..{args.seeds}, filter noise = "
-      "Scenario.filter_sensors()"
-      + ("" if args.rng_scale_frac is None else f" with rangefinder.scale_sigma_frac={args.rng_scale_frac:g}")
-      + "; "
-      f"real: {REAL_LOG.name} + inject_bytes, {0 if args.no_real else args.real_seeds} injection(s) per case, "
-      "filter noise = mavnav defaults")
-    P("σ = the adaptive monitor's sigma of the channel difference at onset (threshold/k, fault-free run)")
-    for dataset in ("sim", "real"):
-        rows = [r for r in faulted if r.dataset == dataset]
-        if not rows:
-            continue
-        P("-" * 100)
-        P(f"[{dataset}] faults: Pd = detected/runs, TTA = time to the first alarm (s), iso = correct source / detected,"
-          " RMS/max = fused height error in the fault window (m)")
-        P(f"{'case':<22}{'magnitude':>16}  {'contender':<9}{'Pd':>7}{'TTA med':>9}{'TTA p95':>9}{'iso':>7}"
-          f"{'RMS':>7}{'max':>7}  blamed when wrong")
-        aggs: Dict[Tuple[str, str], Agg] = defaultdict(Agg)
-        wrong: Dict[Tuple[str, str], Dict[str, int]] = defaultdict(lambda: defaultdict(int))
-        for r in rows:
-            for name in CONTENDERS:
-                m = r.per[name]
-                a = aggs[(r.case, name)]
-                a.n += 1
-                d = m["det"]
-                if d.detected:
-                    a.detected += 1
-                    a.ttas.append(d.tta_s)
-                    if d.isolated:
-                        a.isolated += 1
-                    else:
-                        wrong[(r.case, name)]["+".join(d.first_sources)] += 1
-                a.ss += m["f_ss"]
-                a.cnt += m["f_n"]
-                a.nan += m["f_nan"]
-                if m["f_max"] == m["f_max"]:
-                    a.max_err = max(a.max_err, m["f_max"])
-                a.mags.append(r.fault.get("magnitude", math.nan) if r.fault.get("magnitude") is not None else math.nan)
-        for case in cases:
-            for i, name in enumerate(CONTENDERS):
-                a = aggs.get((case.label, name))
-                if a is None:
-                    continue
-                med, p95 = sm.tta_stats(a.ttas)
-                mags = np.asarray(a.mags, dtype=float)
-                if case.kind == "rng_stuck":
-                    mag = "held reading"
-                elif np.all(np.isnan(mags)):
-                    mag = "-"
-                elif case.sigma_mult is not None:
-                    mag = f"{np.nanmin(mags):.2f}-{np.nanmax(mags):.2f} m"
-                else:
-                    unit = " m/s²" if case.kind == "accel_bias_step" else " m/s" if "ramp" in case.kind else " m"
-                    mag = f"{np.nanmean(mags):g}{unit}"
-                w = ", ".join(f"{k} x{v}" for k, v in sorted(wrong[(case.label, name)].items()))
-                P(f"{case.label if i == 0 else '':<22}{mag if i == 0 else '':>16}  {name:<9}"
-                  f"{a.detected:>3}/{a.n:<3}{fmt(med):>9}{fmt(p95):>9}"
-                  f"{(str(a.isolated) + '/' + str(a.detected)):>7}"
-                  f"{fmt(math.sqrt(a.ss / a.cnt) if a.cnt else math.nan):>7}{fmt(a.max_err):>7}  {w}")
-
-    # fault-free
-    P("-" * 100)
-    P("fault-free: false alarms (alarm transitions) per hour of vehicle time, fused RMS vs truth "
-      f"(sim: after the first {SETTLE_S:g} s)")
-    P(f"{'data':<34}{'contender':<10}{'hours':>7}{'alarms':>8}{'FA/h':>8}{'95% up':>8}{'RMS m':>8}  ICAO (vertical RMS)")
-    groups = [("sim grid flights (PX4, 60 s)", ["sim"]), ("sim in-air landing (PX4, 60 s)", ["landing"]),
-              ("sim long (PX4)", ["long"]), ("sim all (PX4)", ["sim", "landing", "long"]),
-              ("real SITL log (ArduPilot)", ["real"])]
-    ff = {}
-    for label, dsets in groups:
-        rows = [r for r in free if r.dataset in dsets]
-        if not rows:
-            continue
-        hours = sum(r.span_s for r in rows) / 3600.0
-        for name in CONTENDERS:
-            fa = sum(r.per[name]["fa"] for r in rows)
-            ss = sum(r.per[name]["ff_ss"] for r in rows)
-            n = sum(r.per[name]["ff_n"] for r in rows)
-            rm = math.sqrt(ss / n) if n else math.nan
-            ff[(label, name)] = (fa, hours, rm)
-            P(f"{label:<34}{name:<10}{hours:>7.3f}{fa:>8}{fmt(sm.per_hour(fa, hours * 3600)):>8}"
-              f"{fmt(sm.poisson_upper_95(fa, hours * 3600)):>8}{fmt(rm, 3):>8}  {sm.icao_band(rm)}")
-    P("ICAO vertical RMS bands (MODEL.md): " + ", ".join(f"{n} {lo:g}-{hi:g} m" for n, lo, hi in sm.ICAO_BANDS))
-    fa_alarms = [(r.dataset, r.seed, name, a) for r in free for name in CONTENDERS for a in r.per[name]["alarms"]]
-    if fa_alarms:
-        P("false alarms seen:")
-        for ds, seed, name, a in fa_alarms[:20]:
-            P(f"  {ds} seed {seed} {name}: t={a[0]:.2f} s {a[1]} {a[3]}->{a[2]}: {a[4]}")
-        if len(fa_alarms) > 20:
-            P(f"  ... and {len(fa_alarms) - 20} more")
-
-    # pooled RMS during faults
-    P("-" * 100)
-    P("fused height RMS during faults, all cases pooled (m):")
-    for dataset in ("sim", "real"):
-        rows = [r for r in faulted if r.dataset == dataset]
-        if not rows:
-            continue
-        parts = []
-        for name in CONTENDERS:
-            rm = sm.pooled_rms((r.per[name]["f_ss"], r.per[name]["f_n"]) for r in rows)
-            parts.append(f"{name} {fmt(rm, 3)} ({sm.icao_band(rm)})")
-        P(f"  {dataset:<5} " + "   ".join(parts))
-
-    # targets
-    P("-" * 100)
-    P("targets (simulated PX4 data; the real-log figures in brackets):")
-    P(f"{'target':<58}" + "".join(f"{n:>20}" for n in CONTENDERS))
-
-    def target_rows(dataset):
-        rows = [r for r in faulted if r.dataset == dataset]
-        out = {}
-        for name in CONTENDERS:
-            steps = [r for r in rows if case_by[r.case].target == "step" and case_by[r.case].sigma_mult >= 3.0]
-            ok = sum(1 for r in steps if r.per[name]["det"].detected and r.per[name]["det"].tta_s <= 1.0)
-            ramps = [r for r in rows if case_by[r.case].target == "ramp"]
-            okr = sum(1 for r in ramps if r.per[name]["det"].detected
-                      and r.per[name]["det"].tta_s * r.fault["magnitude"] < 3.0)
-            dets = [r.per[name]["det"] for r in rows]
-            iso, det = sm.isolation_rate(dets)
-            out[name] = {"step": (ok, len(steps)), "ramp": (okr, len(ramps)), "iso": (iso, det)}
-        return out
-
-    sim_t = target_rows("sim")
-    real_t = target_rows("real") if any(r.dataset == "real" for r in faulted) else None
-    ffs = {name: ff.get(("sim all (PX4)", name)) for name in CONTENDERS}
-    ffr = {name: ff.get(("real SITL log (ArduPilot)", name)) for name in CONTENDERS}
-
-    def cell(name, key, frac_req):
-        ok, n = sim_t[name][key]
-        met = n > 0 and ok / n >= frac_req
-        s = f"{ok}/{n}{' ok' if met else ' MISS'}"
-        if real_t:
-            s += f" [{real_t[name][key][0]}/{real_t[name][key][1]}]"
-        return s, met
-
-    lines = [("every step >= 3σ detected within 1 s", "step", 1.0),
-             ("0.5 m/s ramp detected before its error reaches 3 m", "ramp", 1.0),
-             ("faulty source identified in >= 95 % of detections", "iso", 0.95)]
-    verdict = {}
-    for text, key, req in lines:
-        cells = [cell(n, key, req) for n in CONTENDERS]
-        verdict[text] = cells[1][1]
-        P(f"{text:<58}" + "".join(f"{c[0]:>20}" for c in cells))
-    cells = []
-    for name in CONTENDERS:
-        fa, hours, rm = ffs[name]
-        rate = sm.per_hour(fa, hours * 3600)
-        s = f"{fmt(rate)}/h{' ok' if rate < 1.0 else ' MISS'}"
-        if ffr[name]:
-            s += f" [{ffr[name][0]}]"
-        cells.append((s, rate < 1.0))
-    verdict["< 1 false alarm per hour fault-free"] = cells[1][1]
-    P(f"{'< 1 false alarm per hour fault-free':<58}" + "".join(f"{c[0]:>20}" for c in cells))
-    cells = []
-    for name in CONTENDERS:
-        fa, hours, rm = ffs[name]
-        s = f"{fmt(rm, 3)} m{' ok' if rm <= 0.85 else ' MISS'}"
-        if ffr[name]:
-            s += f" [{fmt(ffr[name][2], 2)}]"
-        cells.append((s, rm <= 0.85))
-    verdict["fault-free RMS <= 0.85 m (CAT II), PX4 rates"] = cells[1][1]
-    P(f"{'fault-free RMS <= 0.85 m (CAT II), PX4 rates':<58}" + "".join(f"{c[0]:>20}" for c in cells))
-    P("adaptive: " + "; ".join(f"{k}: {'MET' if v else 'MISSED'}" for k, v in verdict.items()))
-    n_runs = len(free) + len(faulted)
-    P(f"{n_runs} runs ({len(faulted)} with a fault) x 3 contenders in {wall:.0f} s wall, {args.workers} worker(s)")
+def _json_default(o):
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    if isinstance(o, (np.floating,)):
+        return float(o)
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(type(o))
 
 
 if __name__ == "__main__":

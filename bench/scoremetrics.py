@@ -185,3 +185,121 @@ ICAO_BANDS: List[Tuple[str, float, float]] = [
     ("CAT II", 0.7, 0.85),
     ("CAT III", 0.2, 0.3),
 ]
+
+
+# ---------------------------------------------------------------- one run of a family
+
+# Sources that are not sensors: their alarms are false alarms, never wrong exclusions.
+NON_SENSOR_SOURCES = ("input",)
+# A fault's source as the monitor may name it: the current monitor has baro_ins, a rewrite
+# may split baro and ins. Faults name one of these groups.
+SOURCE_GROUPS = {
+    "gnss": ("gnss",),
+    "rangefinder": ("rangefinder",),
+    "baro": ("baro_ins", "baro"),
+    "ins": ("baro_ins", "ins"),
+}
+USABLE_STATES = ("nominal", "caution")  # the output is offered as usable
+
+
+@dataclass(frozen=True)
+class RunScore:
+    """What one run of one contender scored (see :func:`score_run`)."""
+
+    fault: bool  # a fault run (False: a nominal run, no alarm expected)
+    detected: bool  # an alarm of any source inside the fault window (False on nominal runs)
+    tta_s: float  # first alarm in the window minus onset (NaN if none)
+    isolated: bool  # every source alarming at that first instant is the fault's
+    blamed: Tuple[str, ...]  # sources alarming at the first instant in the window
+    wrong_exclusions: Tuple[str, ...]  # healthy sensor sources that entered alarm (from the onset on)
+    false_alarms: int  # alarm transitions not explained by the fault (see score_run)
+    hazardous_s: float  # time the output was > hazard_m from truth while offered as usable
+    max_usable_error_m: float  # largest |error| of an output offered as usable
+    available_frac: float  # share of the run's time with a usable output
+    alarmed: Tuple[str, ...]  # every source that entered alarm at any time
+
+    @property
+    def hazardous(self) -> bool:
+        return self.hazardous_s > 0.0
+
+    @property
+    def right(self) -> bool:
+        """Everything right: the fault detected and isolated (fault runs), no wrong
+        exclusion, no false alarm, no hazardous output."""
+        ok = not self.wrong_exclusions and self.false_alarms == 0 and not self.hazardous
+        return ok and (self.detected and self.isolated if self.fault else True)
+
+
+def score_run(alarms: Sequence, t_est: Sequence[float], h_est: Sequence[float], overall: Optional[Sequence[str]],
+              t_truth: Sequence[float], h_truth: Sequence[float], *, window: Optional[Window] = None,
+              expected: Sequence[str] = (), allowed: Sequence[str] = (), hazard_m: float = 3.0,
+              max_hold_s: float = 0.5) -> RunScore:
+    """Score one run from the monitor's public outputs only.
+
+    ``alarms``: state-change events (``t_s``, ``source``, ``state``,
+    ``previous``); ``t_est``/``h_est``/``overall``: per output epoch the
+    vehicle time, the fused height and the overall state (``overall`` None:
+    a contender with no state, whose every output counts as usable).
+
+    * ``window`` ``(onset_s, end_s)`` with ``expected`` (the fault's source
+      names): a fault run. *Detected*: an alarm transition of any source in
+      ``[onset_s, end_s]``; *time-to-alarm* and *isolation* from the first
+      (isolated: every source alarming at that instant is in ``expected``).
+      *False alarms*: alarm transitions before the onset.
+    * no ``expected``: a nominal run (``window``, if given, is only
+      reported); *false alarms*: every alarm transition of a source not in
+      ``allowed``.
+    * *Wrong exclusions*: sensor sources (not ``input``) outside ``expected``
+      and ``allowed`` that enter alarm at or after the onset (fault runs) or
+      at any time (nominal runs).
+    * *Hazardous*: time at output epochs where the output is offered as
+      usable (overall nominal or caution, finite height) and is more than
+      ``hazard_m`` from the truth (linear interpolation of the truth, only
+      inside its time span); each epoch counts until the next, at most
+      ``max_hold_s``. *Available*: the share of that time with a usable
+      output.
+    """
+    onsets = alarm_onsets(alarms)
+    exp, allow = set(expected), set(allowed)
+    fault = bool(exp)
+    alarmed = tuple(sorted({ev.source for ev in onsets}))
+    detected, tta, isolated, blamed = False, math.nan, False, ()
+    t_from = -math.inf
+    if fault:
+        if window is None:
+            raise ValueError("a fault run needs its window")
+        on, end = window
+        t_from = on
+        hits = [ev for ev in onsets if on <= ev.t_s <= end]
+        if hits:
+            t_first = min(ev.t_s for ev in hits)
+            blamed = tuple(sorted({ev.source for ev in hits if abs(ev.t_s - t_first) < 1e-6}))
+            detected, tta, isolated = True, t_first - on, set(blamed) <= exp
+        fa = sum(1 for ev in onsets if ev.t_s < on)
+    else:
+        fa = sum(1 for ev in onsets if ev.source not in allow)
+    healthy_skip = exp | allow | set(NON_SENSOR_SOURCES)
+    wrong = tuple(sorted({ev.source for ev in onsets if ev.t_s >= t_from and ev.source not in healthy_skip}))
+
+    t = np.asarray(t_est, dtype=float)
+    h = np.asarray(h_est, dtype=float)
+    haz_s, avail_s, span_s, max_err = 0.0, 0.0, 0.0, 0.0
+    if t.size:
+        dt = np.minimum(np.diff(t, append=t[-1]), max_hold_s)
+        dt = np.maximum(dt, 0.0)
+        tt, ht = np.asarray(t_truth, dtype=float), np.asarray(h_truth, dtype=float)
+        truth = np.interp(t, tt, ht) if tt.size else np.full(t.shape, np.nan)
+        inside = (t >= tt[0]) & (t <= tt[-1]) if tt.size else np.zeros(t.shape, bool)
+        usable = np.isfinite(h)
+        if overall is not None:
+            usable &= np.isin(np.asarray(overall, dtype=object), USABLE_STATES)
+        err = np.abs(h - truth)
+        bad = usable & inside & (err > hazard_m)
+        haz_s = float(dt[bad].sum())
+        avail_s = float(dt[usable].sum())
+        span_s = float(dt.sum())
+        sel = usable & inside & np.isfinite(err)
+        max_err = float(err[sel].max()) if sel.any() else math.nan
+    return RunScore(fault=fault, detected=detected, tta_s=tta, isolated=isolated, blamed=blamed,
+                    wrong_exclusions=wrong, false_alarms=fa, hazardous_s=haz_s, max_usable_error_m=max_err,
+                    available_frac=avail_s / span_s if span_s > 0 else math.nan, alarmed=alarmed)

@@ -176,3 +176,119 @@ def test_baseline_alarms_on_a_gross_gnss_step_after_its_timeout():
     e, _ = sm.height_errors(out.t_s, out.height_m, res.truth["t_s"], res.truth["true_height_ref_m"],
                             windows=[(15.0, 30.0)])
     assert sm.rms(e) < 0.5
+
+
+# ---------------------------------------------------------------- score_run (bench/integrity.py families)
+
+# 10 Hz output for 40 s, truth flat at 10 m; the fault window is [10, 20].
+T_EST = np.round(np.arange(0.0, 40.0, 0.1), 3)
+TRUTH_T, TRUTH_H = np.array([0.0, 40.0]), np.array([10.0, 10.0])
+
+
+def _out(err_m=0.0, overall="nominal", at=(12.0, 14.0)):
+    """Heights with ``err_m`` of error inside ``at``, and one overall state everywhere else ``nominal``."""
+    h = np.full(T_EST.shape, 10.0)
+    inside = (T_EST >= at[0]) & (T_EST < at[1])
+    h[inside] += err_m
+    ov = np.where(inside, overall, "nominal").tolist()
+    return h, ov
+
+
+def test_score_run_fault_detected_isolated_with_source_aliases():
+    alarms = [ev(3.0, "gnss", "alarm", "nominal"), ev(3.5, "gnss", "nominal", "alarm"),  # before onset: false alarm
+              ev(10.4, "baro_ins", "alarm", "nominal"),  # a baro fault, named by the current monitor
+              ev(15.0, "gnss", "alarm", "nominal")]  # a healthy source excluded after the onset
+    h, ov = _out()
+    s = sm.score_run(alarms, T_EST, h, ov, TRUTH_T, TRUTH_H, window=(10.0, 20.0), expected=sm.SOURCE_GROUPS["baro"])
+    assert s.fault and s.detected and s.isolated
+    assert s.tta_s == pytest.approx(0.4) and s.blamed == ("baro_ins",)
+    assert s.false_alarms == 1 and s.wrong_exclusions == ("gnss",)
+    assert not s.hazardous and s.available_frac == pytest.approx(1.0)
+    assert not s.right  # the wrong exclusion and the false alarm
+    clean = sm.score_run(alarms[2:3], T_EST, h, ov, TRUTH_T, TRUTH_H, window=(10.0, 20.0),
+                         expected=sm.SOURCE_GROUPS["baro"])
+    assert clean.right
+    wrong = sm.score_run([ev(10.4, "rangefinder", "alarm", "nominal")], T_EST, h, ov, TRUTH_T, TRUTH_H,
+                         window=(10.0, 20.0), expected=sm.SOURCE_GROUPS["gnss"])
+    assert wrong.detected and not wrong.isolated and wrong.wrong_exclusions == ("rangefinder",) and not wrong.right
+    late = sm.score_run([ev(20.5, "gnss", "alarm", "nominal")], T_EST, h, ov, TRUTH_T, TRUTH_H,
+                        window=(10.0, 20.0), expected=("gnss",))
+    assert not late.detected and math.isnan(late.tta_s) and not late.right
+
+
+def test_score_run_nominal_allowed_sources_and_input():
+    h, ov = _out()
+    roof = [ev(12.0, "rangefinder", "alarm", "nominal")]
+    s = sm.score_run(roof, T_EST, h, ov, TRUTH_T, TRUTH_H, window=(10.0, 20.0), allowed=("rangefinder",))
+    assert not s.fault and s.false_alarms == 0 and s.wrong_exclusions == () and s.right
+    assert s.alarmed == ("rangefinder",)
+    s = sm.score_run(roof + [ev(13.0, "baro_ins", "alarm", "nominal"), ev(30.0, "input", "alarm", "nominal")],
+                     T_EST, h, ov, TRUTH_T, TRUTH_H, allowed=("rangefinder",))
+    assert s.false_alarms == 2 and s.wrong_exclusions == ("baro_ins",) and not s.right
+    s = sm.score_run([ev(30.0, "input", "alarm", "nominal")], T_EST, h, ov, TRUTH_T, TRUTH_H)
+    assert s.false_alarms == 1 and s.wrong_exclusions == () and not s.right  # slow inputs are no alarm either
+
+
+@pytest.mark.parametrize("err_m,overall,haz_s,avail", [
+    (3.5, "nominal", 2.0, 1.0),  # 2 s offered as usable 3.5 m off: hazardous
+    (3.5, "caution", 2.0, 1.0),
+    (3.5, "unavailable", 0.0, 0.95),  # flagged: not hazardous, not available
+    (3.5, "alarm", 0.0, 0.95),
+    (2.9, "nominal", 0.0, 1.0),  # within 3 m
+    (-3.5, "nominal", 2.0, 1.0),
+    (math.nan, "nominal", 0.0, 0.95),  # no output: nothing offered
+])
+def test_score_run_hazardous_output(err_m, overall, haz_s, avail):
+    h, ov = _out(err_m, overall)
+    s = sm.score_run([], T_EST, h, ov, TRUTH_T, TRUTH_H)
+    assert s.hazardous_s == pytest.approx(haz_s, abs=1e-6)
+    assert s.hazardous == (haz_s > 0) and s.right == (haz_s == 0)
+    assert s.available_frac == pytest.approx(avail, abs=2e-3)
+
+
+def test_score_run_without_states_counts_every_output_as_offered():
+    h, ov = _out(5.0, "unavailable")
+    s = sm.score_run([], T_EST, h, None, TRUTH_T, TRUTH_H)
+    assert s.hazardous_s == pytest.approx(2.0) and s.max_usable_error_m == pytest.approx(5.0)
+
+
+def test_score_run_holds_an_epoch_at_most_max_hold_s():
+    t = np.array([0.0, 1.0, 10.0])  # a 9 s gap after a bad output
+    s = sm.score_run([], t, np.array([10.0, 20.0, 10.0]), ["nominal"] * 3, TRUTH_T, TRUTH_H, max_hold_s=0.5)
+    assert s.hazardous_s == pytest.approx(0.5)
+
+
+def test_integrity_families_build_valid_runs():
+    """Every family's run is a valid scenario (or a SITL injection) whose fault lies in its window."""
+    import integrity
+
+    assert {"descent_above_max", "takeoff_landing", "terrain_roof", "rng_frozen_descent", "accel_bias",
+            "gnss_wander", "slow_telemetry", "inflight_start", "gnss_step3", "baro_ramp", "rng_stuck"} <= set(
+        integrity.FAMILIES)
+    for fam in integrity.FAMILIES.values():
+        for seed in (1, 2):
+            b = fam.build(seed, {"long_minutes": 1.0})
+            fault = b.get("fault") if b.get("real") else (b["scenario"]["faults"] or [None])[0]
+            if not b.get("real"):
+                scenario_from_dict(b["scenario"])
+            if fam.expect is None:
+                assert fault is None, fam.name
+            else:
+                on, end = b["window"]
+                assert fault["onset_s"] == pytest.approx(on, abs=1e-3) and end > on, fam.name
+    roof = integrity.FAMILIES["terrain_roof"].build(3, {})
+    assert roof["scenario"]["terrain"][0]["from_s"] == pytest.approx(roof["window"][0], abs=1e-3)
+    assert [f.name for f in integrity.select("gnss_step*,terrain_roof")] == [
+        "gnss_step3", "gnss_step5", "gnss_step8", "terrain_roof"]
+    with pytest.raises(SystemExit):
+        integrity.select("no_such_family")
+
+
+def test_integrity_job_scores_every_contender():
+    import integrity
+
+    r = integrity.job({"family": "slow_telemetry", "seed": 3, "contenders": ["adaptive", "baseline"],
+                       "baseline_fail_s": 5.0})
+    assert set(r.scores) == {"adaptive", "baseline"} and r.note == "2 Hz" and r.span_s > 50.0
+    for s in r.scores.values():
+        assert not s["fault"] and 0.0 <= s["available_frac"] <= 1.0

@@ -154,12 +154,25 @@ class SimGnssConfig(_Section):
 
 
 class SimRangefinderConfig(_Section):
-    """Downward rangefinder over flat ground at the reference elevation."""
+    """Downward rangefinder over the ground (the reference elevation plus ``terrain``).
+
+    A reading outside ``[min_m, max_m]`` is sent just outside the limits
+    (``min_m - 0.01`` or ``max_m + 0.01``) with ``signal_quality``
+    ``out_of_range_quality``: 1 is MAVLink's "invalid", what ArduPilot sends
+    for a sensor that reports a quality (``MAX(quality, 1)``) and what PX4
+    sends once its stream maps its own 0 (invalid) to 1; 0 is "unknown", what
+    PX4 streams that never set the field and ArduPilot drivers without a
+    quality send (with ``quality: 0`` for the in-range readings too): then
+    ``current_distance`` against ``min_distance``/``max_distance`` is the only
+    sign of an out-of-range reading. ``RANGEFINDER`` carries the distance
+    alone.
+    """
 
     sigma_m: float = Field(0.05, ge=0)
     min_m: float = Field(0.2, ge=0)
     max_m: float = Field(40.0, gt=0)
     quality: int = Field(100, ge=0, le=100)  # DISTANCE_SENSOR.signal_quality when in range
+    out_of_range_quality: int = Field(1, ge=0, le=100)  # ... when outside [min_m, max_m]
 
     @model_validator(mode="after")
     def _range(self) -> "SimRangefinderConfig":
@@ -397,6 +410,28 @@ class Fault(_Section):
         return 0.3 if self.probability is None else self.probability
 
 
+# ---------------------------------------------------------------- terrain
+
+
+class TerrainPatch(_Section):
+    """Ground ``height_m`` above the reference under the vehicle from ``from_s`` to ``to_s``
+    (scenario time, ``from_s <= t < to_s``): a roof, a wall top, a ditch (negative).
+
+    Only the rangefinder sees the ground: it measures height minus ground.
+    The edges are sharp (a roof edge passes under the sensor in one sample).
+    """
+
+    from_s: float = Field(ge=0)
+    to_s: float
+    height_m: float = Field(ge=-1000, le=1000)
+
+    @model_validator(mode="after")
+    def _order(self) -> "TerrainPatch":
+        if self.to_s <= self.from_s:
+            raise ValueError("to_s must exceed from_s")
+        return self
+
+
 # ---------------------------------------------------------------- scenario
 
 
@@ -413,10 +448,15 @@ class Scenario(_Section):
     trajectory: Trajectory
     sensors: SimSensorsConfig = SimSensorsConfig()
     faults: Tuple[Fault, ...] = ()
+    terrain: Tuple[TerrainPatch, ...] = ()  # ground under the vehicle; none: flat at the reference
     truth_rate_hz: float = Field(10.0, gt=0, le=1000)
 
     @model_validator(mode="after")
     def _checks(self) -> "Scenario":
+        patches = sorted(self.terrain, key=lambda p: p.from_s)
+        for a, b in zip(patches, patches[1:]):
+            if b.from_s < a.to_s:
+                raise ValueError(f"terrain: patches overlap ({a.from_s:g}-{a.to_s:g} s and {b.from_s:g}-{b.to_s:g} s)")
         for i, f in enumerate(self.faults):
             if f.messages is not None and f.kind != "rate_drop":
                 raise ValueError(f"faults[{i}].messages: in a scenario only rate_drop takes messages")
@@ -506,6 +546,7 @@ def fault_errors_one_line(exc: ValidationError, origin: str) -> ConfigError:
 __all__: List[str] = [
     "Scenario",
     "Fault",
+    "TerrainPatch",
     "FAULT_SOURCE",
     "FAULT_MAGNITUDE",
     "MESSAGE_TYPES",

@@ -43,7 +43,7 @@ from .sensors import (
     pressure_from_height,
     specific_force_body,
 )
-from .trajectory import Kinematics, TruthTrajectory
+from .trajectory import Kinematics, TruthTrajectory, ground_height_m
 
 IMU_TYPES = ("HIGHRES_IMU", "RAW_IMU", "SCALED_IMU", "SCALED_IMU2")
 MAG_NED_GAUSS = np.array([0.21, 0.01, 0.43])
@@ -311,11 +311,14 @@ def simulate(scenario: Scenario, seed: Optional[int] = None, *, encode: bool = T
         t_r = streams[rng_primary]["t_sim"]
         kr = traj.sample(t_r)
         cos_tilt = np.cos(kr.roll_rad) * np.cos(kr.pitch_rad)
-        slant = kr.height_m / cos_tilt
+        agl = kr.height_m
+        if scn.terrain:
+            agl = np.maximum(agl - ground_height_m(scn.terrain, t_r + off), 0.0)
+        slant = agl / cos_tilt
         reading = slant + rf.sigma_m * _rng(seed, _S_RNG).standard_normal(t_r.size)
         valid = (reading >= rf.min_m) & (reading <= rf.max_m)
         reading = np.where(valid, reading, np.clip(reading, rf.min_m - 0.01, rf.max_m + 0.01))
-        quality = np.where(valid, rf.quality, 1).astype(np.int64)
+        quality = np.where(valid, rf.quality, rf.out_of_range_quality).astype(np.int64)
         silent = np.zeros(t_r.size, dtype=bool)
         for fi, f in enumerate(faults):
             m = window_mask(f, t_r + off)
@@ -497,6 +500,7 @@ TRUTH_COLUMNS = (
     "fault_active",
     "fault_kind",
     "fault_source",
+    "true_ground_ref_m",
 )
 
 
@@ -508,6 +512,7 @@ def _truth_table(scn: Scenario, traj: TruthTrajectory, clock: Clock, faults: Seq
     # vertical share of a body-frame bias: f_up = -(R_nb b_b)_down
     body_up = -np.einsum("kj,j->k", m[:, 2, :], np.asarray(scn.sensors.ins.body_bias_mps2, dtype=float))
     active, kinds, sources = active_labels(faults, t + scn.boot_time_at_start_s)
+    ground = ground_height_m(scn.terrain, t + scn.boot_time_at_start_s)
     cols = {
         "t_s": clock.vehicle_time(t),
         "boot": clock.boot(t),
@@ -519,12 +524,13 @@ def _truth_table(scn: Scenario, traj: TruthTrajectory, clock: Clock, faults: Seq
         "true_roll_rad": k.roll_rad,
         "true_pitch_rad": k.pitch_rad,
         "true_yaw_rad": k.yaw_rad,
-        "true_range_agl_m": k.height_m,  # flat ground at the reference elevation
+        "true_range_agl_m": np.maximum(k.height_m - ground, 0.0),  # vertical height above the ground below
         "true_baro_bias_m": np.full(t.size, scn.sensors.baro.bias_m),
         "true_accel_bias_up_mps2": scn.sensors.ins.bias_up_mps2 + body_up,
         "fault_active": active,
         "fault_kind": np.array(kinds, dtype=object),
         "fault_source": np.array(sources, dtype=object),
+        "true_ground_ref_m": ground,  # ground height above the reference under the vehicle (terrain)
     }
     return Truth(cols)
 

@@ -241,3 +241,12 @@ class TruthTrajectory:
             pitch_rate_radps=(pp - pm) / (2 * dt),
             yaw_rate_radps=dyaw / (2 * dt),
         )
+
+
+def ground_height_m(terrain, t_scenario_s) -> np.ndarray:
+    """Ground height above the reference under the vehicle at scenario times (0 off every patch)."""
+    t = np.atleast_1d(np.asarray(t_scenario_s, dtype=float))
+    g = np.zeros(t.shape)
+    for p in terrain:
+        g = np.where((t >= p.from_s) & (t < p.to_s), p.height_m, g)
+    return g
