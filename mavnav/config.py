@@ -262,6 +262,31 @@ class MonitorConfig(_Section):
     alert_limit_m: float = Field(4.0, gt=0)
     integrity_risk: float = Field(1e-5, gt=0, lt=0.5)
     profile: str = "small_drone"
+    # --- fault hypotheses (mavnav/monitor/hypotheses.py) ---
+    # Sequential test (two-sided CUSUM) of each sensor's normalised innovations:
+    # drift k (sigma), a clip on each residual (sigma), and the false-alert
+    # budget per hour that sets its threshold at the stream's own rate.
+    cusum_k_sigma: float = Field(0.5, gt=0)
+    cusum_clip_sigma: float = Field(5.0, gt=0)
+    cusum_false_alerts_per_h: float = Field(0.01, gt=0)
+    # Baro against the INS: the baro's change over this window against the
+    # INS-propagated change of the baro+INS channel (ramps, steps, accelerometer faults).
+    ins_window_s: float = Field(2.0, gt=0)
+    # A test past this fraction of its threshold is a suspect (caution); below
+    # clear_frac it rules out the sources it would have seen.
+    suspect_frac: float = Field(0.8, gt=0, le=1)
+    clear_frac: float = Field(0.5, gt=0, le=1)
+    # An aux channel that went this long without its sensor is re-initialised
+    # from the baro+INS channel when the sensor returns (it never gates out its
+    # own sensor after coasting, and a rangefinder back in range finds its ground).
+    coast_reinit_s: float = Field(3.0, gt=0)
+    # Rangefinder envelope: readings refused below its minimum (or above its
+    # maximum) while the other sources put the vehicle more than margin inside
+    # its range, for most of a window, are a rangefinder failure.
+    range_envelope_window_s: float = Field(2.0, gt=0)
+    range_envelope_margin_m: float = Field(1.5, ge=0)
+    range_envelope_min_refused: int = Field(5, ge=1)
+    range_envelope_frac: float = Field(0.2, gt=0, le=1)
 
 
 class Config(_Section):

@@ -155,6 +155,10 @@ class Rejected:
     t_us: Optional[int] = None
     boot: Optional[int] = None
     sensor: Optional[str] = None  # the measurement kind refused ("range", "gnss", ...) when it was one
+    # the refused reading and the sensor's valid range, where there is one (NaN: not known)
+    value_m: float = float("nan")
+    min_m: float = float("nan")
+    max_m: float = float("nan")
 
 
 @dataclass(frozen=True, slots=True)

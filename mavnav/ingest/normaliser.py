@@ -890,10 +890,12 @@ class Normaliser:
                 self._reject(recv_s, "impossible", f"{name} negative distance {range_m:.3g} m", t_us, boot, sensor="range")
                 return
         if not lo_m <= range_m <= hi_m:
-            self._reject(recv_s, "out_of_range", f"{name} {range_m:.3f} m outside [{lo_m:g}, {hi_m:g}] m", t_us, boot, sensor="range")
+            self._reject(recv_s, "out_of_range", f"{name} {range_m:.3f} m outside [{lo_m:g}, {hi_m:g}] m", t_us, boot, sensor="range",
+                         value_m=range_m, min_m=lo_m, max_m=hi_m)
             return
         if self._stuck(raw, t_us, boot):
-            self._reject(recv_s, "stuck", f"{name} reads {range_m:.3f} m for {self.cfg.rangefinder_stuck_s} s while the baro moved", t_us, boot, sensor="range")
+            self._reject(recv_s, "stuck", f"{name} reads {range_m:.3f} m for {self.cfg.rangefinder_stuck_s} s while the baro moved", t_us, boot, sensor="range",
+                         value_m=range_m, min_m=lo_m, max_m=hi_m)
             return
         if not self._admit("range", t_us, recv_s, boot):
             return
@@ -1066,10 +1068,12 @@ class Normaliser:
         self.out.append(event)
 
     def _reject(self, recv_s: float, kind: str, detail: str, t_us: Optional[int] = None, boot: Optional[int] = None,
-                sensor: Optional[str] = None) -> None:
+                sensor: Optional[str] = None, value_m: float = math.nan, min_m: float = math.nan,
+                max_m: float = math.nan) -> None:
         self.stats.rejected[kind] += 1
         self._emit(Rejected(recv_s=recv_s, kind=kind, detail=detail, t_us=t_us,
-                            boot=boot if boot is not None or t_us is None else self.clock.boot, sensor=sensor))
+                            boot=boot if boot is not None or t_us is None else self.clock.boot, sensor=sensor,
+                            value_m=value_m, min_m=min_m, max_m=max_m))
 
     def _finalise_stats(self) -> None:
         st = self.stats

@@ -81,12 +81,12 @@ class Monitor:
     # ------------------------------------------------------------------ lifecycle
 
     def _reset(self) -> None:
-        from .adaptive import AdaptiveLogic
+        from .hypotheses import HypothesisLogic
         from .paper import PaperLogic
 
         self.builder = EpochBuilder(self.cfg)
         self.bank = ChannelBank(self.model)
-        logic_cls = PaperLogic if self.mcfg.mode == "paper" else AdaptiveLogic
+        logic_cls = PaperLogic if self.mcfg.mode == "paper" else HypothesisLogic
         self.logic = logic_cls(self.cfg, self.bank)
         self.raw = {"baro": math.nan, "gnss": math.nan, "rng": math.nan, "ap": math.nan}
         self.rates = {k: RateMeter() for k in ("imu", "baro", "gnss", "rng")}
@@ -119,7 +119,7 @@ class Monitor:
             return []
         elif isinstance(s, Rejected):
             if s.t_us is not None and s.sensor == "range":
-                self.logic.on_range_refused(s.t_us, s.kind)
+                self.logic.on_range_refused(s)
         elif isinstance(s, LinkLost):
             self._link_lost = True
             self._input_event("unavailable", f"link lost ({s.silent_s:.1f} s silent)")
@@ -173,7 +173,9 @@ class Monitor:
                 if r < 0.9 * need[k]:  # 10 % tolerance: a nominal 10 Hz stream jitters
                     slow.append(f"{k} {r:.1f} Hz < {need[k]:.0f}")
         if slow:
-            return self.input.set("caution", t_us, "too slow for %.1f s alarm: %s" % (m.time_to_alarm_s, ", ".join(slow)))
+            # slow inputs make monitoring unavailable at the required time-to-alarm; they never make a sensor faulty
+            return self.input.set("unavailable", t_us, "monitoring degraded, too slow for the %.1f s time-to-alarm: %s"
+                                  % (m.time_to_alarm_s, ", ".join(slow)))
         return self.input.set("nominal", t_us, "rates support the time-to-alarm")
 
     def _epoch(self, ep: EpochInputs) -> tuple[EpochReport, list[AlarmEvent]]:
@@ -214,7 +216,8 @@ class Monitor:
         states = {st.state for st in sources.values()}
         if "alarm" in states:
             overall = "alarm"
-        elif not (vpl <= self.mcfg.alert_limit_m):
+        elif (not (vpl <= self.mcfg.alert_limit_m) or d.height_fused_m != d.height_fused_m
+              or sources["input"].state == "unavailable"):
             overall = "unavailable"
         elif "caution" in states:
             overall = "caution"

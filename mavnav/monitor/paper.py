@@ -43,7 +43,7 @@ class PaperLogic:
     def pre(self, ep: EpochInputs) -> EpochInputs:
         return ep
 
-    def on_range_refused(self, t_us: int, kind: str) -> None:
+    def on_range_refused(self, s) -> None:
         pass  # the paper has no notion of refused readings
 
     def _fresh(self, c: int, t_us: int) -> bool:

@@ -27,27 +27,28 @@ class RawAuxCheck:
         self._q: deque[tuple[int, float, float]] = deque()  # (t_us, diff, var)
 
     def push(self, t_us: int, gnss: Optional[tuple[float, float]], rng: Optional[tuple[float, float]]) -> None:
-        """Latest raw (height, sigma) of each aux sensor seen at this epoch."""
-        if gnss is not None:
-            self._g = (t_us, gnss[0], gnss[1])
+        """Latest raw (height, sigma) of each aux sensor seen at this epoch. A
+        pair is formed at each GNSS sample (the slower, noisier stream) with the
+        latest rangefinder reading, so no GNSS sample counts twice."""
         if rng is not None:
             self._r = (t_us, rng[0], rng[1])
-        if (gnss is not None or rng is not None) and self._g and self._r:
-            if abs(self._g[0] - self._r[0]) <= self.max_skew_us:
+        if gnss is not None:
+            self._g = (t_us, gnss[0], gnss[1])
+            if self._r and abs(self._g[0] - self._r[0]) <= self.max_skew_us:
                 self._q.append((t_us, self._g[1] - self._r[1], self._g[2] ** 2 + self._r[2] ** 2))
         while self._q and self._q[0][0] <= t_us - self.window_us:
             self._q.popleft()
 
     def verdict(self) -> Optional[tuple[bool, float, float]]:
         """``(agree, mean difference, its sigma)`` over the window, or None
-        when there are too few paired samples to say."""
+        when there are too few paired samples to say. The sigma is one
+        sample's: GNSS errors are correlated in time, so averaging the window
+        does not shrink them."""
         n = len(self._q)
         if n < 3:
             return None
         mean = sum(d for _, d, _ in self._q) / n
-        # samples are treated as independent; GNSS errors are correlated in
-        # time, which k (the comparison threshold) absorbs
-        sigma = math.sqrt(sum(v for _, _, v in self._q) / n / n)
+        sigma = math.sqrt(sum(v for _, _, v in self._q) / n)
         return abs(mean) <= self.k * max(sigma, 1e-6), mean, sigma
 
     def clear(self) -> None:

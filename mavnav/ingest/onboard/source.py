@@ -311,7 +311,7 @@ class _Builder:
                 code, rng, lo, hi, cos_t = c[2][i], c[3][i], c[4][i], c[5][i], c[6][i]
                 st.events["Rejected"] += 1
                 yield Rejected(recv, _RANGE_WHY[code], _range_detail(rng_name, code, rng, lo, hi, cos_t, self.cfg),
-                               t, 0, sensor="range")
+                               t, 0, sensor="range", value_m=rng, min_m=lo, max_m=hi)
                 continue
             else:  # _IMU_REJ
                 st.events["Rejected"] += 1

@@ -1,0 +1,616 @@
+"""``mode: adaptive`` (the default): fault hypotheses, tests that return
+verdicts, one decision table.
+
+Every epoch the tests below each return a :class:`~.verdict.Verdict`;
+:func:`.table.judge` turns them into one situation (isolated, ambiguous,
+inconsistent, suspect, clear) and :data:`.table.TABLE` into states and
+actions. The tests, with the hypotheses a failure implicates:
+
+* ``gnss`` / ``rangefinder`` innovation (each sensor in its own channel):
+  a chi-square gate per sample (a rejected sample never enters) and a
+  two-sided CUSUM for ramps and small steps; implicates the sensor and the
+  baro (the channel's prediction rests on the baro; the INS between samples
+  is held by the baro rows, so an INS fault shows first in the baro/INS
+  test), or the sensor and the INS when the baro is excluded; a sudden jump
+  of the innovation while the same epoch's baro row is clean implicates the
+  sensor alone;
+* ``baro/INS`` (:mod:`.inscheck`): the baro's change over a window against the
+  INS, and a per-sample jump gate; implicates the baro and the INS, and a
+  clear pass rules both out;
+* ``raw GNSS-rangefinder`` (:mod:`.rawcheck`): the two raw aux heights, no
+  baro and no INS; implicates those two, and a clear pass rules both out;
+* ``rangefinder envelope``: readings refused at the bottom (or top) of the
+  rangefinder's range, or frozen, while the other sources put the vehicle
+  inside it; implicates the rangefinder alone. Entering and leaving the range
+  is normal and raises nothing.
+
+No latch: an excluded source is readmitted after ``readmit_s`` of raw
+consistency (an aux sensor against the others' fused height; the baro
+against the INS and, where a channel runs without it, against that
+channel's level). An aux channel that went ``coast_reinit_s`` without its
+sensor, or whose sigma passed ``max_channel_sigma_m``, is re-initialised from
+the baro+INS channel when the sensor returns. The fused output holds only
+channels whose sources the evidence clears; with none, it is NaN and the
+monitor is unavailable.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections import deque
+from typing import Optional
+
+import numpy as np
+
+from ..bank import BARO, GNSS, RNG, ChannelBank
+from ..channel import EpochInputs
+from ..config import Config
+from .cusum import Cusum, threshold_for
+from .decision import Decision, diff_sigmas, pair_reports
+from .fusion import fuse_heights
+from .inscheck import InsBaroCheck
+from .levels import chi2_gate, normal_k
+from .rawcheck import RawAuxCheck
+from .table import Judgement, judge
+from .tracker import SourceTracker
+from .verdict import HYPOTHESES, REPORT_SOURCE, SENSOR_SOURCES, Verdict
+from .window import InnovationWindow
+
+AUX = ((GNSS, "gnss"), (RNG, "rangefinder"))
+LABEL = {"gnss": "GNSS", "rangefinder": "rangefinder", "baro_ins": "baro+INS"}
+CHANNEL_OF = {"gnss": GNSS, "rangefinder": RNG, "baro_ins": BARO}
+REFUSAL_KINDS = ("out_of_range", "invalid_status", "stuck", "impossible")
+
+
+class _Rate:
+    """Samples per second of one stream, from its own intervals (EMA)."""
+
+    def __init__(self) -> None:
+        self.last_us: Optional[int] = None
+        self.interval_s = math.nan
+
+    def push(self, t_us: int) -> None:
+        if self.last_us is not None and t_us > self.last_us:
+            dt = (t_us - self.last_us) * 1e-6
+            self.interval_s = dt if self.interval_s != self.interval_s else 0.9 * self.interval_s + 0.1 * dt
+        self.last_us = t_us
+
+    @property
+    def hz(self) -> float:
+        return 1.0 / self.interval_s if self.interval_s == self.interval_s and self.interval_s > 0 else 10.0
+
+
+class HypothesisLogic:
+    def __init__(self, cfg: Config, bank: ChannelBank):
+        self.m = m = cfg.monitor
+        self.f = m.features
+        self.bank = bank
+        self.k_cmp = normal_k(m.false_alarm_prob)
+        self.gate = chi2_gate(m.gate_prob)
+        self.baro_gate = chi2_gate(m.baro_jump_prob)
+        self.persist_us = int(m.persist_s * 1e6)
+        self.readmit_us = int(m.readmit_s * 1e6)
+        self.validate_us = int(m.validate_s * 1e6)
+        self.feedback_us = int(m.feedback_interval_s * 1e6)
+        self.stale_us = {GNSS: int(m.stale_gnss_s * 1e6), RNG: int(m.stale_rng_s * 1e6)}
+        self.stale_baro_us = int(m.stale_baro_s * 1e6)
+        self.coast_us = int(m.coast_reinit_s * 1e6)
+        self.warmup_us = int(m.warmup_s * 1e6)
+        self.t0_us = 0
+        self._h_cache: dict[int, float] = {}
+
+    # ------------------------------------------------------------------ state
+
+    def start(self, t_us: int, boot: int) -> None:
+        m = self.m
+        self.t0_us = t_us
+        self.boot = boot
+        clear_us = int(m.clear_s * 1e6)
+        self.trackers = {s: SourceTracker(s, t_us, boot, clear_us=clear_us) for s in SENSOR_SOURCES}
+        self.cusum = {s: Cusum(m.cusum_k_sigma, m.cusum_clip_sigma) for s in ("gnss", "rangefinder")}
+        self.rates = {s: _Rate() for s in ("gnss", "rangefinder", "baro_ins")}
+        self.rejections = {s: InnovationWindow(m.window_s, cap=self.gate) for s in SENSOR_SOURCES}
+        self.excluded: set[str] = set()
+        self.last_accept_us: dict[int, Optional[int]] = {GNSS: None, RNG: None}
+        self.last_seen_us: dict[int, Optional[int]] = {GNSS: None, RNG: None}
+        self.last_baro_us = t_us
+        self.last_baro_m: Optional[float] = None
+        self.last_z = {"gnss": math.nan, "rangefinder": math.nan, "baro_ins": math.nan}
+        self.consistent_since: dict[str, Optional[int]] = {s: None for s in SENSOR_SOURCES}
+        self.warm_until = {s: t_us + self.warmup_us for s in SENSOR_SOURCES}
+        self.pending_raw: dict[int, Optional[tuple]] = {GNSS: None, RNG: None}
+        self.sensor_var_floor = [0.0, 0.0, 0.0]
+        self.bank.baro_on[:] = True
+        self.ins = InsBaroCheck(m.ins_window_s)
+        self.ins_exceed_since: Optional[int] = None
+        self.raw_check = RawAuxCheck(window_s=1.0, k=self.k_cmp)
+        self.refused: deque = deque()  # (t_us, kind, value_m, min_m, max_m)
+        self.range_valid: deque = deque()
+        self.isolated_since: Optional[int] = None
+        self.isolated_src: frozenset = frozenset()
+        self.last_feedback_us = t_us
+        self.baro_white_var = 0.0
+        self.dv_var = 0.0
+        self.baro_jump_sigma = math.nan
+        self.baro_jump_m = 0.0
+        self.envelope_failing = False
+        self.last_r_m = {"gnss": 0.0, "rangefinder": 0.0}
+        self.last_sd_m = {"gnss": math.inf, "rangefinder": math.inf}
+        self.level_since: dict[int, Optional[int]] = {GNSS: None, RNG: None}
+        self.sudden: dict[str, tuple] = {}  # name -> (t_us, baro clean then, jump m)
+        self.judgement = Judgement("clear", frozenset(), frozenset(), "start")
+
+    # ------------------------------------------------------------------ refused readings
+
+    def on_range_refused(self, s) -> None:
+        if s.kind in REFUSAL_KINDS and hasattr(self, "refused"):
+            self.refused.append((s.t_us, s.kind, s.value_m, s.min_m, s.max_m))
+
+    # ------------------------------------------------------------------ before the step
+
+    def _warm(self, name: str, t: int) -> bool:
+        return t < self.warm_until[name]
+
+    def _h(self, name: str) -> float:
+        """CUSUM threshold for a stream at its own rate (cached per 0.5 Hz)."""
+        key = int(round(self.rates[name].hz * 2))
+        h = self._h_cache.get(key)
+        if h is None:
+            h = self._h_cache[key] = threshold_for(self.m.cusum_k_sigma, self.m.cusum_false_alerts_per_h,
+                                                   max(key / 2.0, 0.5))
+        return h
+
+    def pre(self, ep: EpochInputs) -> EpochInputs:
+        """Gate GNSS / rangefinder samples, judge the baro sample, keep excluded sources out."""
+        bank = self.bank
+        t = ep.t_us
+        changes = {}
+        max_var = self.m.max_channel_sigma_m ** 2
+        baro_z = math.inf  # this epoch's baro row against the INS (inf: none)
+        if ep.baro_m is not None:
+            self.rates["baro_ins"].push(t)
+            self.last_baro_us = t
+            self.last_baro_m = ep.baro_m
+            self.baro_white_var = ep.baro_white_var_m2
+            # judged in the channel held best by an aux sensor (its velocity is the
+            # surest); the baro+INS channel alone trades a level error for velocity
+            r, S = bank.predicted_baro(self._anchor(), ep)
+            if S == S and S > 0:
+                nu2 = r * r / S
+                self.last_z["baro_ins"] = r / math.sqrt(S)
+                baro_z = abs(self.last_z["baro_ins"])
+                reject = self.f.innovation_gating and nu2 > self.baro_gate
+                if not self._warm("baro_ins", t):
+                    self.rejections["baro_ins"].push(t, nu2, reject)
+                if reject:
+                    self.baro_jump_sigma = math.sqrt(nu2)
+                    self.baro_jump_m = r
+                    changes["baro_restart"] = True  # no baro row anywhere; differencing restarts
+        for c, name in AUX:
+            aux = ep.gnss if c == GNSS else ep.rng
+            self.pending_raw[c] = None
+            if aux is None:
+                continue
+            self.rates[name].push(t)
+            if c == RNG:
+                self.range_valid.append(t)
+            last = self.last_seen_us[c]
+            self.last_seen_us[c] = t
+            self.pending_raw[c] = (aux.height_m - aux.age_s * bank.x[c, 1], aux.sigma_m)
+            self.sensor_var_floor[c] = aux.sigma_m * aux.sigma_m
+            field_name = "gnss" if c == GNSS else "rng"
+            if name in self.excluded:
+                changes[field_name] = None  # the channel coasts; readmission decides later
+                continue
+            acc = self.last_accept_us[c]
+            # back after coasting without its sensor (not after rejecting it: that is
+            # the tests' business), or with a sigma past the limit: start again
+            absent = last is not None and t - last > self.coast_us
+            if absent or bank.P[c, 0, 0] > max_var:
+                self._reinit_aux(c, name, t, aux.sigma_m)
+            r, S = bank.predicted_aux(c, ep, aux)
+            z = r / math.sqrt(S) if S > 0 else math.inf
+            nu2 = z * z
+            # a sudden change of the innovation while this epoch's baro row is
+            # clean: neither the baro nor the INS (whose errors are integrals)
+            # can make it
+            sd = math.sqrt(S) if S > 0 else math.inf
+            if last is not None and t - last <= self.stale_us[c] and not absent:
+                jump = abs(r - self.last_r_m[name])
+                if jump > math.sqrt(self.gate) * math.hypot(sd, self.last_sd_m[name]):
+                    self.sudden[name] = (t, baro_z < self.m.clear_frac * math.sqrt(self.baro_gate), jump)
+            self.last_z[name] = z
+            self.last_r_m[name] = r
+            self.last_sd_m[name] = sd
+            reject = self.f.innovation_gating and nu2 > self.gate
+            if not self._warm(name, t):
+                if self.f.window_test:
+                    self.cusum[name].push(z)
+                self.rejections[name].push(t, nu2, reject)
+            if reject:
+                changes[field_name] = None
+            else:
+                self.last_accept_us[c] = t
+        self.dv_var = ep.dv_var_m2ps2
+        return dataclasses.replace(ep, **changes) if changes else ep
+
+    def _anchor(self) -> int:
+        best, best_var = BARO, math.inf
+        for c, name in AUX:
+            last = self.last_accept_us[c]
+            if name in self.excluded or last is None or self.trackers[name].state == "alarm":
+                continue
+            if self.bank.P[c, 0, 0] < best_var:
+                best, best_var = c, self.bank.P[c, 0, 0]
+        return best
+
+    def _reinit_aux(self, c: int, name: str, t: int, sigma_m: float) -> None:
+        """An aux channel back from coasting starts again from the baro+INS
+        channel, its height open (a rangefinder back in range finds its ground)."""
+        self.bank.reinit_from(c, BARO, extra_height_var=self.m.max_channel_sigma_m ** 2 + sigma_m * sigma_m)
+        self.cusum[name].clear()
+        self.rejections[name].clear()
+        self.warm_until[name] = t + self.warmup_us
+        self.last_accept_us[c] = t
+
+    # ------------------------------------------------------------------ the tests
+
+    def _aux_verdict(self, c: int, name: str, t: int) -> Optional[Verdict]:
+        if name in self.excluded or self._warm(name, t) or self.last_seen_us[c] is None:
+            return None
+        if t - self.last_seen_us[c] > self.stale_us[c]:
+            return None
+        m = self.m
+        cs = self.cusum[name]
+        h = self._h(name)
+        rej = self.rejections[name].rejected
+        # with the baro in the channel, the INS between aux samples is held by the
+        # baro rows (an INS fault shows there first, in the baro/INS test)
+        implicates = frozenset((name, "baro")) if self.bank.baro_on[c] else frozenset((name, "ins"))
+        label = LABEL[name]
+        sudden = self.sudden.get(name)
+        if sudden is not None and t - sudden[0] > self.rejections[name].length_us:
+            self.sudden.pop(name)
+            sudden = None
+        if (self.f.innovation_gating and rej >= m.alarm_rejections and sudden is not None and sudden[1]):
+            return Verdict(f"{name} innovation", "fail", frozenset((name,)), stat=cs.stat, threshold=h,
+                           text=f"{label} jumped {sudden[2]:.2f} m while the baro and INS stayed consistent; "
+                                f"{rej} samples rejected in {m.window_s:g} s", scale_m=sudden[2])
+        if (self.f.innovation_gating and rej >= m.alarm_rejections) or cs.stat > h:
+            why = (f"{rej} {label} samples rejected in {m.window_s:g} s" if rej >= m.alarm_rejections
+                   else f"{label} innovations drift {'up' if cs.sign > 0 else 'down'} (CUSUM {cs.stat:.1f} > {h:.1f})")
+            return Verdict(f"{name} innovation", "fail", implicates, stat=cs.stat, threshold=h, text=why,
+                           scale_m=abs(self.last_r_m[name]))
+        if rej >= m.caution_rejections or cs.stat > m.suspect_frac * h:
+            return Verdict(f"{name} innovation", "suspect", implicates, stat=cs.stat, threshold=h,
+                           text=f"{label}: {rej} rejected, CUSUM {cs.stat:.1f} of {h:.1f}")
+        clear = frozenset((name,)) if cs.stat < m.clear_frac * h and rej == 0 else frozenset()
+        return Verdict(f"{name} innovation", "pass", implicates, clear, cs.stat, h,
+                       scale_m=math.sqrt(self.gate) * self.last_sd_m[name] - abs(self.last_r_m[name]))
+
+    def _ins_verdict(self, t: int) -> Optional[Verdict]:
+        if self._warm("baro_ins", t) or t - self.last_baro_us > self.stale_baro_us:
+            return None
+        m = self.m
+        model = self.bank.model
+        implicates = frozenset(("baro", "ins"))
+        rej = self.rejections["baro_ins"].rejected
+        if self.f.innovation_gating and rej >= 1 and "baro_ins" not in self.excluded:
+            return Verdict("baro/INS", "fail", implicates, stat=self.baro_jump_sigma, threshold=math.sqrt(self.baro_gate),
+                           text=f"baro jump against the INS ({self.baro_jump_sigma:.1f} sigma)",
+                           scale_m=abs(self.baro_jump_m))
+        T = max(self.rates["baro_ins"].interval_s, 1e-3) if self.rates["baro_ins"].interval_s == self.rates["baro_ins"].interval_s else 0.1
+        psd = 2.0 * model.sigma_a_mps2 ** 2 / model.alpha_a_per_s + self.dv_var / T
+        res = self.ins.residual(self.baro_white_var, psd, model.baro_bias_rw_m_per_sqrt_s ** 2,
+                                model.sigma_bb_m ** 2, model.gamma_bb_per_s)
+        if res is None:
+            return None
+        e, sigma, D = res
+        thr = self.k_cmp * sigma
+        stat = abs(e)
+        txt = f"baro moved {e:+.2f} m against the INS over {D:.1f} s (threshold {thr:.2f} m)"
+        if stat > thr:
+            if self.ins_exceed_since is None:
+                self.ins_exceed_since = t
+            if t - self.ins_exceed_since >= self.persist_us:
+                return Verdict("baro/INS", "fail", implicates, stat=stat, threshold=thr, text=txt, scale_m=stat)
+            return Verdict("baro/INS", "suspect", implicates, stat=stat, threshold=thr, text=txt)
+        self.ins_exceed_since = None
+        if stat > m.suspect_frac * thr:
+            return Verdict("baro/INS", "suspect", implicates, stat=stat, threshold=thr, text=txt)
+        clear = implicates if stat < m.clear_frac * thr and rej == 0 else frozenset()
+        return Verdict("baro/INS", "pass", implicates, clear, stat, thr, scale_m=thr)  # V_s follows a slow error in part
+
+    def _level_verdicts(self, t: int) -> list[Verdict]:
+        """The baro's level against each aux channel's ``H + dH`` (the channel's
+        height held by its own sensor, and its estimate of the baro's bias): a
+        slowly growing baro or aux error that the differenced baro row cannot see."""
+        out = []
+        if "baro_ins" in self.excluded or self.last_baro_m is None or self._warm("baro_ins", t):
+            return out
+        bank = self.bank
+        avail = self._available(t)
+        for c, name in AUX:
+            if not avail[c] or self._warm(name, t) or not bank.baro_on[c]:
+                self.level_since[c] = None
+                continue
+            x, P = bank.x[c], bank.P[c]
+            r = self.last_baro_m - (x[0] + x[2])
+            var = P[0, 0] + P[2, 2] + 2.0 * P[0, 2] + bank.model.sigma_bb_m ** 2 + self.baro_white_var
+            thr = self.k_cmp * math.sqrt(var)
+            implicates = frozenset(("baro", name))
+            test = f"baro level against {LABEL[name]}"
+            txt = f"baro {r:+.2f} m from the {LABEL[name]} channel (threshold {thr:.2f} m)"
+            if abs(r) > thr:
+                if self.level_since[c] is None:
+                    self.level_since[c] = t
+                level = "fail" if t - self.level_since[c] >= self.persist_us else "suspect"
+                out.append(Verdict(test, level, implicates, stat=abs(r), threshold=thr, text=txt, scale_m=abs(r)))
+                continue
+            self.level_since[c] = None
+            if abs(r) > self.m.suspect_frac * thr:
+                out.append(Verdict(test, "suspect", implicates, stat=abs(r), threshold=thr, text=txt))
+            else:
+                # a pass clears the baro only: the channel's height may be holding off
+                # a faulty aux sensor by gating it
+                clear = frozenset(("baro",)) if abs(r) < self.m.clear_frac * thr else frozenset()
+                # scale: the threshold, not less the statistic: the channel's own height
+                # follows a slow baro error in part, so the margin overstates the power
+                out.append(Verdict(test, "pass", implicates, clear, abs(r), thr, scale_m=thr))
+        return out
+
+    def _raw_verdict(self) -> Optional[Verdict]:
+        if {"gnss", "rangefinder"} & self.excluded:
+            return None
+        v = self.raw_check.verdict()
+        if v is None:
+            return None
+        agree, mean, sigma = v
+        thr = self.k_cmp * sigma
+        implicates = frozenset(("gnss", "rangefinder"))
+        if not agree:
+            return Verdict("raw GNSS-rangefinder", "fail", implicates, stat=abs(mean), threshold=thr,
+                           text=f"raw GNSS - rangefinder {mean:+.2f} m (threshold {thr:.2f} m)", scale_m=abs(mean))
+        # a pass rules nothing out: one GNSS sample's sigma is too coarse to vouch for the rangefinder
+        return Verdict("raw GNSS-rangefinder", "pass", implicates, frozenset(), abs(mean), thr)
+
+    def _envelope_verdict(self, t: int) -> Optional[Verdict]:
+        """Readings refused at the edge of the range (or frozen) while the
+        vehicle, by the baro+INS channel, is well inside it."""
+        m = self.m
+        limit = t - int(m.range_envelope_window_s * 1e6)
+        q, ok = self.refused, self.range_valid
+        while q and (q[0][0] is None or q[0][0] <= limit):
+            q.popleft()
+        while ok and ok[0] <= limit:
+            ok.popleft()
+        if not q:
+            return None
+        h = float(self.bank.x[BARO, 0])
+        margin = m.range_envelope_margin_m + self.k_cmp * math.sqrt(max(self.bank.P[BARO, 0, 0], 0.0))
+        bad = []
+        for _, kind, v, lo, hi in q:
+            if kind == "stuck":
+                bad.append(f"frozen at {v:.2f} m")
+            elif kind in ("out_of_range", "invalid_status", "impossible") and v == v:
+                lo = lo if lo == lo else 0.0
+                hi = hi if hi == hi else math.inf
+                if v <= lo + 1e-6 and h > lo + margin and h < hi - margin:
+                    bad.append(f"reads {v:.2f} m (minimum {lo:g} m)")
+                elif v >= hi - 1e-6 and h < hi - margin:
+                    bad.append(f"reads {v:.2f} m (maximum {hi:g} m)")
+        n = len(q) + len(ok)
+        if len(bad) >= m.range_envelope_min_refused and len(bad) >= m.range_envelope_frac * n:
+            return Verdict("rangefinder envelope", "fail", frozenset(("rangefinder",)), stat=len(bad), threshold=n,
+                           text=f"rangefinder {bad[-1]} in {len(bad)} of {n} readings while the vehicle is "
+                                f"{h:.1f} m up by baro+INS", scale_m=0.0)  # refused readings: no pass on
+                                                                              # the accepted ones clears them
+        return None
+
+    # ------------------------------------------------------------------ after the step
+
+    def _available(self, t: int) -> tuple[bool, bool, bool]:
+        bank = self.bank
+        max_var = self.m.max_channel_sigma_m ** 2
+        out = []
+        for c, name in AUX:
+            last = self.last_accept_us[c]
+            out.append(name not in self.excluded and last is not None and t - last <= self.stale_us[c]
+                       and bank.P[c, 0, 0] <= max_var)
+        out.append(t - self.last_baro_us <= self.stale_baro_us and bank.P[BARO, 0, 0] <= max_var)
+        return tuple(out)  # type: ignore[return-value]
+
+    def post(self, ep: EpochInputs, ep_used: EpochInputs, step) -> Decision:
+        bank = self.bank
+        t = ep.t_us
+        for w in self.rejections.values():
+            w.expire(t)
+        self.raw_check.push(t, self.pending_raw[GNSS], self.pending_raw[RNG])
+        self.ins.push(t, ep.dt_s, ep.dp_m, ep.dv_mps, ep.baro_m, bank.x[BARO], bank.P[BARO])
+        avail = self._available(t)
+        thr = self.k_cmp * diff_sigmas(bank, self.sensor_var_floor)
+        pairs = pair_reports(bank, avail, thr)
+
+        envelope = self._envelope_verdict(t)
+        self.envelope_failing = envelope is not None  # also holds back the rangefinder's readmission
+        if "rangefinder" in self.excluded:
+            envelope = None
+        verdicts = [v for v in (self._aux_verdict(GNSS, "gnss", t), self._aux_verdict(RNG, "rangefinder", t),
+                                self._ins_verdict(t), self._raw_verdict(), envelope)
+                    if v is not None] + self._level_verdicts(t)
+        live = frozenset(h for h in HYPOTHESES if REPORT_SOURCE[h] not in self.excluded)
+        j = judge(verdicts, live) if self.f.isolation_2of3 else self._paper_judge(verdicts, live)
+        self.judgement = j
+        events = []
+        # isolation must hold persist_s before it excludes
+        if j.situation == "isolated":
+            if self.isolated_src != j.sources:
+                self.isolated_src, self.isolated_since = j.sources, t
+        else:
+            self.isolated_src, self.isolated_since = frozenset(), None
+        for name in SENSOR_SOURCES:
+            ev = self._source_state(name, t, j)
+            if ev is not None:
+                events.append(ev)
+        # --- fusion of the channels the evidence clears
+        cleared = {n: self.trackers[n].state == "nominal" or
+                   (self.trackers[n].state == "caution" and n not in self._held(j)) for n in SENSOR_SOURCES}
+        baro_ok = cleared["baro_ins"] and avail[BARO]
+        used = (avail[GNSS] and cleared["gnss"] and (baro_ok or not bank.baro_on[GNSS]),
+                avail[RNG] and cleared["rangefinder"] and (baro_ok or not bank.baro_on[RNG]),
+                baro_ok)
+        idx = [c for c in range(3) if used[c]]
+        h, sigma = math.nan, math.nan
+        if idx:
+            h, sigma, _ = fuse_heights([bank.x[c, 0] for c in idx], bank.height_cov(idx), self.f.inverse_variance)
+        if self.f.validated_feedback:
+            self._feedback(t, avail)
+        statuses = {}
+        for name, trk in self.trackers.items():
+            stat, hi = self._display_stat(name, verdicts)
+            statuses[name] = trk.status(window_stat=stat, window_low=math.nan, window_high=hi,
+                                        rejected=self.rejections[name].rejected)
+        return Decision(available=avail, used=tuple(used), pairs=pairs, sources=statuses,
+                        height_fused_m=h, sigma_fused_m=sigma, events=events)
+
+    @staticmethod
+    def _held(j: Judgement) -> frozenset:
+        return j.sources if not j.enters_output else frozenset()
+
+    def _display_stat(self, name: str, verdicts) -> tuple[float, float]:
+        test = {"gnss": "gnss innovation", "rangefinder": "rangefinder innovation", "baro_ins": "baro/INS"}[name]
+        for v in verdicts:
+            if v.test == test:
+                return v.stat, v.threshold
+        return math.nan, math.nan
+
+    def _paper_judge(self, verdicts, live) -> Judgement:
+        """Isolation switched off: every failure blames its own sensor (the
+        paper's rule, channel against baro+INS)."""
+        for v in verdicts:
+            if v.failed:
+                name = v.test.split(" ")[0]
+                src = {"gnss": "gnss", "rangefinder": "rangefinder", "baro/INS": "baro_ins", "raw": "gnss"}.get(name)
+                if src and src not in self.excluded:
+                    return Judgement("isolated", frozenset(), frozenset((src,)), v.text)
+        return judge([v for v in verdicts if not v.failed], live)
+
+    def _source_state(self, name: str, t: int, j: Judgement):
+        tr = self.trackers[name]
+        if name in self.excluded:
+            return self._maybe_readmit(name, t)
+        if name == "baro_ins":
+            if t - self.last_baro_us > self.stale_baro_us:
+                return tr.set("unavailable", t, "no recent baro")
+        else:
+            c = CHANNEL_OF[name]
+            if self.last_seen_us[c] is None or t - self.last_seen_us[c] > self.stale_us[c]:
+                env = j.sources == frozenset((name,)) and j.situation == "isolated"
+                if not env:
+                    return tr.set("unavailable", t, "no recent data")
+        if name in j.sources:
+            if j.situation == "isolated":
+                if t - (self.isolated_since or t) >= self.persist_us:
+                    return self._exclude(name, t, j.reason)
+                return tr.set("caution", t, j.reason)
+            return tr.set(j.state, t, j.reason)
+        return tr.set("nominal", t, "consistent")
+
+    def _exclude(self, name: str, t: int, reason: str):
+        self.excluded.add(name)
+        self.consistent_since[name] = None
+        if name == "baro_ins":
+            # a faulty baro is taken out of every aux channel, not only the fusion
+            self.bank.baro_on[GNSS] = self.bank.baro_on[RNG] = False
+        else:
+            self.cusum[name].clear()
+            self.rejections[name].clear()
+        return self.trackers[name].set("alarm", t, reason)
+
+    # ------------------------------------------------------------------ readmission
+
+    def _others_fused(self, exclude: int) -> Optional[tuple[float, float]]:
+        bank = self.bank
+        idx = [c for c, n in ((GNSS, "gnss"), (RNG, "rangefinder"), (BARO, "baro_ins"))
+               if c != exclude and n not in self.excluded and bank.P[c, 0, 0] <= self.m.max_channel_sigma_m ** 2]
+        if not idx:
+            return None
+        h, s, _ = fuse_heights([bank.x[c, 0] for c in idx], bank.height_cov(idx), True)
+        return h, s
+
+    def _consistent_for(self, name: str, t: int, ok: bool) -> bool:
+        if not ok:
+            self.consistent_since[name] = None
+            return False
+        if self.consistent_since[name] is None:
+            self.consistent_since[name] = t
+        return self.f.readmission and t - self.consistent_since[name] >= self.readmit_us
+
+    def _maybe_readmit(self, name: str, t: int):
+        if name == "baro_ins":
+            return self._maybe_readmit_baro(t)
+        c = CHANNEL_OF[name]
+        raw = self.pending_raw[c]
+        if raw is None:
+            if self.last_seen_us[c] is not None and t - self.last_seen_us[c] > self.stale_us[c]:
+                self.consistent_since[name] = None
+            return None
+        ref = self._others_fused(c)
+        if ref is None:
+            return None
+        z, sigma = raw
+        h, s = ref
+        ok = abs(z - h) <= self.k_cmp * math.hypot(sigma, s) and not (c == RNG and self.envelope_failing)
+        if not self._consistent_for(name, t, ok):
+            return None
+        self.excluded.discard(name)
+        self._reinit_aux(c, name, t, sigma)
+        return self.trackers[name].set("nominal", t, f"readmitted after {self.m.readmit_s:g} s consistent; "
+                                                     "channel re-initialised")
+
+    def _maybe_readmit_baro(self, t: int):
+        """Back when the baro agrees with the INS again and, where an aux
+        channel runs without it, with that channel's level ``H + dH``."""
+        bank = self.bank
+        rej = self.rejections["baro_ins"].rejected
+        v = self._ins_verdict_quiet(t)
+        ok = v and rej == 0 and self.last_baro_m is not None
+        if ok:
+            for c, name in AUX:
+                if name in self.excluded or not self._available(t)[c]:
+                    continue
+                x, P = bank.x[c], bank.P[c]
+                r = self.last_baro_m - (x[0] + x[2])
+                var = P[0, 0] + P[2, 2] + 2.0 * P[0, 2] + bank.model.sigma_bb_m ** 2 + self.baro_white_var
+                ok = ok and abs(r) <= self.k_cmp * math.sqrt(var)
+        if not self._consistent_for("baro_ins", t, bool(ok)):
+            return None
+        self.excluded.discard("baro_ins")
+        self.rejections["baro_ins"].clear()
+        bank.baro_on[:] = True  # differencing restarts in the aux channels
+        return self.trackers["baro_ins"].set("nominal", t, f"readmitted after {self.m.readmit_s:g} s consistent")
+
+    def _ins_verdict_quiet(self, t: int) -> bool:
+        model = self.bank.model
+        res = self.ins.residual(self.baro_white_var, 2.0 * model.sigma_a_mps2 ** 2 / model.alpha_a_per_s,
+                                model.baro_bias_rw_m_per_sqrt_s ** 2, model.sigma_bb_m ** 2, model.gamma_bb_per_s)
+        return res is not None and abs(res[0]) <= self.k_cmp * res[1]
+
+    # ------------------------------------------------------------------ feedback
+
+    def _feedback(self, t: int, avail) -> None:
+        """Correct the reference channel from channels nominal for validate_s:
+        weak (``feedback_inflation``), rate-limited, never into a suspect baro."""
+        if t - self.last_feedback_us < self.feedback_us:
+            return
+        self.last_feedback_us = t
+        if "baro_ins" in self.excluded or self.trackers["baro_ins"].state != "nominal":
+            return
+        src = [c for c, name in AUX if avail[c] and self.trackers[name].state == "nominal"
+               and t - self.trackers[name].since_us >= self.validate_us and not self._warm(name, t)]
+        if not src:
+            return
+        bank = self.bank
+        _, _, w = fuse_heights([bank.x[c, 0] for c in src], bank.height_cov(src), True)
+        bank.feedback(BARO, list(src), np.asarray(w), inflation=self.m.feedback_inflation)

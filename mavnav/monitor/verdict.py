@@ -1,0 +1,48 @@
+"""Fault hypotheses and the verdicts of the tests that weigh them.
+
+Each source is a hypothesis: ``gnss``, ``rangefinder``, ``baro``, ``ins``
+(a single fault at a time). A test is a pure function of the filters' state
+and its own statistics that returns a :class:`Verdict`: pass, suspect or
+fail, the hypotheses a failure implicates (the sources the tested quantity
+depends on), the hypotheses a clear pass rules out (the sources it would have
+seen, with power to spare), and its evidence in numbers and words.
+
+The report has three sensor sources: ``baro`` and ``ins`` are both
+``baro_ins`` there (the reference channel); the reason says which.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+HYPOTHESES = ("gnss", "rangefinder", "baro", "ins")
+REPORT_SOURCE = {"gnss": "gnss", "rangefinder": "rangefinder", "baro": "baro_ins", "ins": "baro_ins"}
+SENSOR_SOURCES = ("gnss", "rangefinder", "baro_ins")
+
+Level = Literal["pass", "suspect", "fail"]
+
+NONE: frozenset = frozenset()
+
+
+@dataclass(frozen=True, slots=True)
+class Verdict:
+    test: str
+    level: Level
+    implicates: frozenset  # hypotheses a failure points at
+    exonerates: frozenset = NONE  # hypotheses this (clear) pass rules out
+    stat: float = 0.0
+    threshold: float = 0.0
+    text: str = ""
+    # metres: a failure's discrepancy, or the smallest fault that would have made
+    # a pass fail (its threshold less its statistic); a pass rules out only
+    # faults it could have seen
+    scale_m: float = 0.0
+
+    @property
+    def failed(self) -> bool:
+        return self.level == "fail"
+
+
+def report_sources(hyps) -> frozenset:
+    return frozenset(REPORT_SOURCE[h] for h in hyps)

@@ -1,0 +1,96 @@
+"""The fault-hypothesis monitor: the decision table on its own, the CUSUM
+threshold from the false-alert budget, and the rangefinder rules on a real
+ArduPilot log whose rangefinder reads 0 m the whole flight."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mavnav.audit import audit_file
+from mavnav.config import load_config
+from mavnav.monitor.cusum import Cusum, siegmund_arl, threshold_for
+from mavnav.monitor.table import TABLE, judge
+from mavnav.monitor.verdict import Verdict
+
+SHARED = Path(__file__).resolve().parents[1].parent / "shared"
+G, R, B, I = "gnss", "rangefinder", "baro", "ins"
+
+
+def fail(*hyps, size=5.0):
+    return Verdict("t", "fail", frozenset(hyps), text="x", scale_m=size)
+
+
+def clear(*hyps, scale=1.0):
+    return Verdict("t", "pass", frozenset(hyps), frozenset(hyps), scale_m=scale)
+
+
+@pytest.mark.parametrize("verdicts, situation, sources", [
+    ([fail(G, B), clear(B, I)], "isolated", {"gnss"}),
+    ([fail(R, B), clear(B, I)], "isolated", {"rangefinder"}),
+    ([fail(B, I)], "isolated", {"baro_ins"}),  # baro and INS are one report source
+    ([fail(G, B)], "ambiguous", {"gnss", "baro_ins"}),
+    ([fail(G, B), clear(B, I, scale=9.0)], "ambiguous", {"gnss", "baro_ins"}),  # the pass lacks the power
+    ([fail(G, B), fail(R)], "inconsistent", {"gnss", "baro_ins", "rangefinder"}),
+    ([Verdict("t", "suspect", frozenset((G,)))], "suspect", {"gnss"}),
+    ([clear(G), clear(B, I)], "clear", set()),
+])
+def test_the_table_isolates_only_what_the_evidence_isolates(verdicts, situation, sources):
+    j = judge(verdicts)
+    assert j.situation == situation
+    assert set(j.sources) == sources
+    assert j.state == TABLE[situation][0]
+
+
+def test_an_excluded_source_cannot_explain_a_new_failure():
+    j = judge([fail(G, B)], live=frozenset((G, R, I)))
+    assert j.situation == "isolated" and set(j.sources) == {"gnss"}
+
+
+def test_ambiguity_keeps_the_suspects_out_of_the_output():
+    assert judge([fail(G, B)]).enters_output is False
+    assert judge([Verdict("t", "suspect", frozenset((G,)))]).enters_output is True
+
+
+def test_cusum_threshold_spends_the_budget_at_the_streams_rate():
+    h10, h2 = threshold_for(0.5, 0.01, 10.0), threshold_for(0.5, 0.01, 2.0)
+    assert h2 < h10  # a slower stream reaches the same budget with a lower threshold
+    arl = siegmund_arl(0.5, h10)
+    assert arl == pytest.approx(2 * 3600 * 10.0 / 0.01, rel=1e-3)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_cusum_on_white_noise_rarely_trips_and_finds_a_small_shift(seed):
+    rng = np.random.default_rng(seed)
+    h = threshold_for(0.5, 1.0, 10.0)  # 1 per hour at 10 Hz
+    c = Cusum(0.5, 5.0)
+    trips = 0
+    for z in rng.standard_normal(6000):  # 10 minutes
+        c.push(float(z))
+        if c.stat > h:
+            trips += 1
+            c.clear()
+    assert trips <= 2
+    c.clear()
+    n = 0
+    for z in rng.standard_normal(600) + 1.5:  # a 1.5 sigma shift
+        c.push(float(z))
+        n += 1
+        if c.stat > h:
+            break
+    assert n < 30 and c.sign > 0
+
+
+LOG = SHARED / "flightlogs" / "SITL_wlichon_baseline_00000001.BIN"
+
+
+@pytest.mark.skipif(not LOG.exists(), reason="needs ../shared/flightlogs")
+def test_a_rangefinder_reading_zero_in_flight_is_a_rangefinder_alarm_and_nothing_else():
+    """RFND.Dist 0 (status out-of-range-low) for the whole flight while the
+    copter hovers at 3 m: the dead rangefinder is found, and blamed alone."""
+    r = audit_file(LOG, load_config(None))
+    alarms = [a for a in r["alarms"] if a["state"] == "alarm"]
+    assert alarms and {a["source"] for a in alarms} == {"rangefinder"}, alarms
+    assert "reads 0.00 m" in alarms[0]["reason"]
