@@ -287,6 +287,22 @@ class MonitorConfig(_Section):
     range_envelope_margin_m: float = Field(1.5, ge=0)
     range_envelope_min_refused: int = Field(5, ge=1)
     range_envelope_frac: float = Field(0.2, gt=0, le=1)
+    # A baro sample past the jump gate is a step only if the baro stays there:
+    # the innovations from the jump on must keep this fraction of it for at
+    # least this long and this many samples (a spike of prop wash returns).
+    baro_jump_confirm_s: float = Field(0.5, ge=0)
+    baro_jump_confirm_samples: int = Field(2, ge=1)
+    baro_jump_stay_frac: float = Field(0.5, gt=0, le=1)
+    # The measured scale of each test's normalised residuals (monitor/scale.py):
+    # forgetting time, and how far the data may sharpen (min) or dull (max) a
+    # test against the filters' own covariance.
+    residual_scale_tau_s: float = Field(60.0, gt=0)
+    residual_scale_min: float = Field(0.5, gt=0, le=1)
+    residual_scale_max: float = Field(5.0, ge=1)
+    # A pass rules out faults larger than its statistic plus this many of its
+    # sigmas; a failure's size is its innovation averaged over this time.
+    clear_margin_sigma: float = Field(2.0, ge=0)
+    fail_size_tau_s: float = Field(1.0, gt=0)
 
 
 class Config(_Section):

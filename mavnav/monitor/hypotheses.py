@@ -52,6 +52,7 @@ from .fusion import fuse_heights
 from .inscheck import InsBaroCheck
 from .levels import chi2_gate, normal_k
 from .rawcheck import RawAuxCheck
+from .scale import ResidualScale
 from .table import Judgement, judge
 from .tracker import SourceTracker
 from .verdict import HYPOTHESES, REPORT_SOURCE, SENSOR_SOURCES, Verdict
@@ -136,10 +137,21 @@ class HypothesisLogic:
         self.baro_jump_m = 0.0
         self.envelope_failing = False
         self.last_r_m = {"gnss": 0.0, "rangefinder": 0.0}
+        self.r_avg_m = {"gnss": 0.0, "rangefinder": 0.0}
         self.last_sd_m = {"gnss": math.inf, "rangefinder": math.inf}
         self.level_since: dict[int, Optional[int]] = {GNSS: None, RNG: None}
         self.sudden: dict[str, tuple] = {}  # name -> (t_us, baro clean then, jump m)
         self.judgement = Judgement("clear", frozenset(), frozenset(), "start")
+        # measured scale of each sequential test's residuals; the INS check only
+        # ever widens (its windows overlap, so only the variance ratio counts)
+        sc = (m.residual_scale_tau_s, m.residual_scale_min, m.residual_scale_max)
+        self.scale = {"gnss": ResidualScale(*sc), "rangefinder": ResidualScale(*sc),
+                      "ins": ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0),
+                      "baro": ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0)}
+        self.jump: Optional[list] = None  # open baro jump: [t0, size_m, sd0, offset_m, n_after, before]
+        self.before_jump: deque = deque(maxlen=5)  # last clean baro samples: (t, b, ins pos, ins vel, V)
+        self.baro_judged: Optional[tuple] = None  # this epoch's baro row: (r, sd, rejected)
+        self.jump_confirmed: Optional[tuple] = None  # (t, cum_m, sigma)
 
     # ------------------------------------------------------------------ refused readings
 
@@ -180,13 +192,21 @@ class HypothesisLogic:
                 nu2 = r * r / S
                 self.last_z["baro_ins"] = r / math.sqrt(S)
                 baro_z = abs(self.last_z["baro_ins"])
-                reject = self.f.innovation_gating and nu2 > self.baro_gate
+                # the jump gate at the baro row's measured scatter (never below the model's)
+                sc = self.scale["baro"]
+                reject = self.f.innovation_gating and nu2 > self.baro_gate * sc.sd ** 2
+                if not reject and self.jump is None:
+                    sc.push(t, self.last_z["baro_ins"])
                 if not self._warm("baro_ins", t):
                     self.rejections["baro_ins"].push(t, nu2, reject)
+                    self.baro_judged = (r, math.sqrt(S), reject)
                 if reject:
                     self.baro_jump_sigma = math.sqrt(nu2)
                     self.baro_jump_m = r
                     changes["baro_restart"] = True  # no baro row anywhere; differencing restarts
+            else:
+                self.jump = None  # the differencing restarted
+                self.before_jump.clear()
         for c, name in AUX:
             aux = ep.gnss if c == GNSS else ep.rng
             self.pending_raw[c] = None
@@ -222,11 +242,20 @@ class HypothesisLogic:
                     self.sudden[name] = (t, baro_z < self.m.clear_frac * math.sqrt(self.baro_gate), jump)
             self.last_z[name] = z
             self.last_r_m[name] = r
+            # the failure's size: the innovation's recent mean (one sample is noise)
+            w = 1.0 - math.exp(-max(t - (last or t), 0) * 1e-6 / self.m.fail_size_tau_s) if last is not None else 1.0
+            self.r_avg_m[name] = r if absent else self.r_avg_m[name] + w * (r - self.r_avg_m[name])
             self.last_sd_m[name] = sd
-            reject = self.f.innovation_gating and nu2 > self.gate
+            # the gate at the innovations' measured scatter, never below the model's
+            reject = self.f.innovation_gating and nu2 > self.gate * max(1.0, self.scale[name].sd) ** 2
+            if absent:
+                self.scale[name].gap()
             if not self._warm(name, t):
                 if self.f.window_test:
-                    self.cusum[name].push(z)
+                    sc = self.scale[name]
+                    self.cusum[name].push(z / sc.factor)
+                    if not reject and self.cusum[name].stat < self.m.suspect_frac * self._h(name):
+                        sc.push(t, z)  # frozen while the test leans towards a fault
                 self.rejections[name].push(t, nu2, reject)
             if reject:
                 changes[field_name] = None
@@ -244,6 +273,46 @@ class HypothesisLogic:
             if self.bank.P[c, 0, 0] < best_var:
                 best, best_var = c, self.bank.P[c, 0, 0]
         return best
+
+    def _track_jump(self, t: int, b: float, r: float, sd: float, reject: bool) -> None:
+        """A baro sample past the jump gate opens a jump. Each later sample is
+        compared with the last clean one carried forward by the INS and the
+        channel's velocity then (no filter update in between can absorb it): the
+        jump is a step if, after ``baro_jump_confirm_s`` and
+        ``baro_jump_confirm_samples``, the baro still sits ``baro_jump_stay_frac``
+        of the jump away; otherwise a spike (prop wash, a pressure glitch) that
+        the gate alone handles."""
+        m = self.m
+        ins = self.ins
+        j = self.jump
+        if j is None:
+            before = self.before_jump
+            while before and t - before[0][0] > 1e6 * max(1.0, 2 * m.baro_jump_confirm_s):
+                before.popleft()
+            if reject and before:
+                before = tuple(before)
+                size = b - self._carried(before, t)
+                self.jump = [t, size, sd, size, 0, before]
+            elif not reject:
+                before.append((t, b, ins.pos_m, ins.vel_mps, float(self.bank.x[self._anchor(), 1])))
+            return
+        j[3] = b - self._carried(j[5], t)
+        j[4] += 1
+        if t - j[0] < m.baro_jump_confirm_s * 1e6 or j[4] < m.baro_jump_confirm_samples:
+            return
+        if j[3] * j[1] > 0 and abs(j[3]) >= m.baro_jump_stay_frac * abs(j[1]):
+            self.jump_confirmed = (t, j[3], abs(j[1]) / j[2])
+        self.jump = None
+
+    def _carried(self, samples, t: int) -> float:
+        """The median of clean baro samples carried forward to ``t`` by the INS
+        and the channel's velocity at each (one noisy sample is no reference)."""
+        ins = self.ins
+        out = []
+        for t_b, b_b, pos_b, vel_b, v_b in samples:
+            dt = (t - t_b) * 1e-6
+            out.append(b_b + (ins.pos_m - pos_b) - vel_b * dt + v_b * dt)
+        return float(np.median(out))
 
     def _reinit_aux(self, c: int, name: str, t: int, sigma_m: float) -> None:
         """An aux channel back from coasting starts again from the baro+INS
@@ -281,13 +350,15 @@ class HypothesisLogic:
             why = (f"{rej} {label} samples rejected in {m.window_s:g} s" if rej >= m.alarm_rejections
                    else f"{label} innovations drift {'up' if cs.sign > 0 else 'down'} (CUSUM {cs.stat:.1f} > {h:.1f})")
             return Verdict(f"{name} innovation", "fail", implicates, stat=cs.stat, threshold=h, text=why,
-                           scale_m=abs(self.last_r_m[name]))
+                           scale_m=abs(self.r_avg_m[name]))
         if rej >= m.caution_rejections or cs.stat > m.suspect_frac * h:
             return Verdict(f"{name} innovation", "suspect", implicates, stat=cs.stat, threshold=h,
                            text=f"{label}: {rej} rejected, CUSUM {cs.stat:.1f} of {h:.1f}")
-        clear = frozenset((name,)) if cs.stat < m.clear_frac * h and rej == 0 else frozenset()
+        clear = frozenset() if cs.stat >= m.clear_frac * h or rej else (
+            # without the baro the channel rests on the INS alone between its samples
+            frozenset((name,)) if self.bank.baro_on[c] else frozenset((name, "ins")))
         return Verdict(f"{name} innovation", "pass", implicates, clear, cs.stat, h,
-                       scale_m=math.sqrt(self.gate) * self.last_sd_m[name] - abs(self.last_r_m[name]))
+                       scale_m=abs(self.r_avg_m[name]) + m.clear_margin_sigma * self.last_sd_m[name])
 
     def _ins_verdict(self, t: int) -> Optional[Verdict]:
         if self._warm("baro_ins", t) or t - self.last_baro_us > self.stale_baro_us:
@@ -296,10 +367,17 @@ class HypothesisLogic:
         model = self.bank.model
         implicates = frozenset(("baro", "ins"))
         rej = self.rejections["baro_ins"].rejected
-        if self.f.innovation_gating and rej >= 1 and "baro_ins" not in self.excluded:
-            return Verdict("baro/INS", "fail", implicates, stat=self.baro_jump_sigma, threshold=math.sqrt(self.baro_gate),
-                           text=f"baro jump against the INS ({self.baro_jump_sigma:.1f} sigma)",
-                           scale_m=abs(self.baro_jump_m))
+        jc = self.jump_confirmed
+        if jc is not None and t - jc[0] > self.rejections["baro_ins"].length_us:
+            jc = self.jump_confirmed = None
+        if self.f.innovation_gating and jc is not None and "baro_ins" not in self.excluded:
+            return Verdict("baro/INS", "fail", implicates, stat=jc[2], threshold=math.sqrt(self.baro_gate),
+                           text=f"baro stepped {jc[1]:+.2f} m against the INS ({jc[2]:.1f} sigma) and stayed",
+                           scale_m=abs(jc[1]))
+        if self.f.innovation_gating and self.jump is not None and "baro_ins" not in self.excluded:
+            return Verdict("baro/INS", "suspect", implicates, stat=abs(self.jump[1]) / self.jump[2],
+                           threshold=math.sqrt(self.baro_gate),
+                           text=f"baro jumped {self.jump[1]:+.2f} m against the INS; watching whether it stays")
         T = max(self.rates["baro_ins"].interval_s, 1e-3) if self.rates["baro_ins"].interval_s == self.rates["baro_ins"].interval_s else 0.1
         psd = 2.0 * model.sigma_a_mps2 ** 2 / model.alpha_a_per_s + self.dv_var / T
         res = self.ins.residual(self.baro_white_var, psd, model.baro_bias_rw_m_per_sqrt_s ** 2,
@@ -307,8 +385,11 @@ class HypothesisLogic:
         if res is None:
             return None
         e, sigma, D = res
-        thr = self.k_cmp * sigma
+        sc = self.scale["ins"]
+        thr = self.k_cmp * sigma * sc.factor
         stat = abs(e)
+        if stat <= m.suspect_frac * thr:
+            sc.push(t, e / sigma)  # frozen while the test leans towards a fault
         txt = f"baro moved {e:+.2f} m against the INS over {D:.1f} s (threshold {thr:.2f} m)"
         if stat > thr:
             if self.ins_exceed_since is None:
@@ -357,7 +438,10 @@ class HypothesisLogic:
                 clear = frozenset(("baro",)) if abs(r) < self.m.clear_frac * thr else frozenset()
                 # scale: the threshold, not less the statistic: the channel's own height
                 # follows a slow baro error in part, so the margin overstates the power
-                out.append(Verdict(test, "pass", implicates, clear, abs(r), thr, scale_m=thr))
+                # a baro fault of size X would read about X here: faults beyond the
+                # statistic plus a margin are ruled out
+                out.append(Verdict(test, "pass", implicates, clear, abs(r), thr,
+                                   scale_m=abs(r) + self.m.clear_margin_sigma * thr / self.k_cmp))
         return out
 
     def _raw_verdict(self) -> Optional[Verdict]:
@@ -428,6 +512,9 @@ class HypothesisLogic:
             w.expire(t)
         self.raw_check.push(t, self.pending_raw[GNSS], self.pending_raw[RNG])
         self.ins.push(t, ep.dt_s, ep.dp_m, ep.dv_mps, ep.baro_m, bank.x[BARO], bank.P[BARO])
+        if self.baro_judged is not None:
+            self._track_jump(t, ep.baro_m, *self.baro_judged)
+            self.baro_judged = None
         avail = self._available(t)
         thr = self.k_cmp * diff_sigmas(bank, self.sensor_var_floor)
         pairs = pair_reports(bank, avail, thr)
@@ -439,7 +526,9 @@ class HypothesisLogic:
         verdicts = [v for v in (self._aux_verdict(GNSS, "gnss", t), self._aux_verdict(RNG, "rangefinder", t),
                                 self._ins_verdict(t), self._raw_verdict(), envelope)
                     if v is not None] + self._level_verdicts(t)
-        live = frozenset(h for h in HYPOTHESES if REPORT_SOURCE[h] not in self.excluded)
+        # excluding baro_ins takes the baro out; the INS still drives every channel,
+        # so it stays a hypothesis
+        live = frozenset(h for h in HYPOTHESES if h == "ins" or REPORT_SOURCE[h] not in self.excluded)
         j = judge(verdicts, live) if self.f.isolation_2of3 else self._paper_judge(verdicts, live)
         self.judgement = j
         events = []

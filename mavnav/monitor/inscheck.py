@@ -32,6 +32,15 @@ class InsBaroCheck:
         # (t_us, pos, vel, baro_m, V, P_VV, da, P_dd, P_Vd)
         self._q: deque = deque()
 
+    @property
+    def pos_m(self) -> float:
+        """The chained INS position increments up to the last epoch (m)."""
+        return self._pos
+
+    @property
+    def vel_mps(self) -> float:
+        return self._vel
+
     def clear(self) -> None:
         self._q.clear()
 

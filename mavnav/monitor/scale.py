@@ -1,0 +1,72 @@
+"""The measured scale of a normalised residual stream: what the filters'
+covariance predicts against what the flight shows.
+
+A test statistic built from normalised residuals ``z = r / sqrt(S)`` assumes
+``z`` is white with unit variance. On real flights neither holds: GNSS
+altitude wanders with minutes of correlation, telemetry-rate IMU samples make
+the INS worse than its model, and receivers report conservative accuracies
+(``z`` far below 1). A CUSUM fed such residuals either alarms on the wander or
+sleeps through a ramp.
+
+:class:`ResidualScale` estimates, from the residuals themselves, their
+variance ratio ``E[z^2]`` and lag-one correlation ``phi`` with exponential
+forgetting (time constant ``tau_s``), and returns the long-run standard
+deviation factor ``sqrt(E[z^2] (1 + phi) / (1 - phi))``: the scale a sum of
+residuals actually grows with. Dividing ``z`` by it gives residuals whose sums
+behave as the test assumes. It starts at 1 (the model), with the model's
+weight worth ``tau_s`` of data, and is clipped to ``[lo, hi]``: the data may
+sharpen a test at most ``1/lo`` times and dull it at most ``hi`` times. The
+caller freezes it (does not push) while its test is past caution, so a fault
+cannot teach the test to ignore it.
+"""
+
+from __future__ import annotations
+
+import math
+
+
+class ResidualScale:
+    __slots__ = ("tau_s", "lo", "hi", "max_phi", "m2", "c1", "prev", "last_us")
+
+    def __init__(self, tau_s: float, lo: float, hi: float, max_phi: float = 0.95):
+        self.tau_s = tau_s
+        self.lo = lo
+        self.hi = hi
+        self.max_phi = max_phi
+        self.m2 = 1.0  # E[z^2]
+        self.c1 = 0.0  # E[z_t z_{t-1}]
+        self.prev = math.nan
+        self.last_us = None
+
+    def push(self, t_us: int, z: float) -> None:
+        if z != z or abs(z) == math.inf:
+            return
+        dt = 0.1 if self.last_us is None else max((t_us - self.last_us) * 1e-6, 0.0)
+        self.last_us = t_us
+        w = 1.0 - math.exp(-dt / self.tau_s)
+        self.m2 += w * (z * z - self.m2)
+        if self.prev == self.prev:
+            self.c1 += w * (z * self.prev - self.c1)
+        self.prev = z
+
+    def gap(self) -> None:
+        """The stream paused: the next residual is not a neighbour of the last."""
+        self.prev = math.nan
+
+    @property
+    def phi(self) -> float:
+        if self.m2 <= 0:
+            return 0.0
+        return max(0.0, min(self.max_phi, self.c1 / self.m2))
+
+    @property
+    def sd(self) -> float:
+        """The residuals' own standard deviation (for per-sample gates, where
+        correlation does not matter), clipped like :attr:`factor`."""
+        return max(self.lo, min(self.hi, math.sqrt(max(self.m2, 0.0))))
+
+    @property
+    def factor(self) -> float:
+        phi = self.phi
+        lrv = self.m2 * (1.0 + phi) / (1.0 - phi)
+        return max(self.lo, min(self.hi, math.sqrt(max(lrv, 0.0))))
