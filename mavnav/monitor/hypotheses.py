@@ -149,7 +149,11 @@ class HypothesisLogic:
                       "ins": ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0),
                       "baro": ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0)}
         self.jump: Optional[list] = None  # open baro jump: [t0, size_m, sd0, offset_m, n_after, before]
-        self.before_jump: deque = deque(maxlen=5)  # last clean baro samples: (t, b, ins pos, ins vel, V)
+        self.before_jump: deque = deque(maxlen=64)  # clean baro samples: (t, b, ins pos, ins vel, V)
+        # the same offset at every clean sample (against the samples a confirm
+        # time before it): its measured scatter is what a step must beat
+        self.offset_scale = ResidualScale(m.residual_scale_tau_s, 0.0, math.inf, max_phi=0.0)
+        self.offset_scale.m2 = 0.0
         self.baro_judged: Optional[tuple] = None  # this epoch's baro row: (r, sd, rejected)
         self.jump_confirmed: Optional[tuple] = None  # (t, cum_m, sigma)
 
@@ -290,17 +294,22 @@ class HypothesisLogic:
             while before and t - before[0][0] > 1e6 * max(1.0, 2 * m.baro_jump_confirm_s):
                 before.popleft()
             if reject and before:
-                before = tuple(before)
-                size = b - self._carried(before, t)
-                self.jump = [t, size, sd, size, 0, before]
+                ref = tuple(before)[-5:]
+                size = b - self._carried(ref, t)
+                self.jump = [t, size, sd, size, 0, ref]
             elif not reject:
+                old = [e for e in tuple(before)[-16:] if t - e[0] >= m.baro_jump_confirm_s * 1e6][-5:]
+                if old:
+                    self.offset_scale.push(t, b - self._carried(old, t))
                 before.append((t, b, ins.pos_m, ins.vel_mps, float(self.bank.x[self._anchor(), 1])))
             return
         j[3] = b - self._carried(j[5], t)
         j[4] += 1
         if t - j[0] < m.baro_jump_confirm_s * 1e6 or j[4] < m.baro_jump_confirm_samples:
             return
-        if j[3] * j[1] > 0 and abs(j[3]) >= m.baro_jump_stay_frac * abs(j[1]):
+        # a step stays, and beats the baro's own scatter of such offsets at the jump level
+        floor = math.sqrt(self.baro_gate * max(self.offset_scale.m2, 0.0))
+        if j[3] * j[1] > 0 and abs(j[3]) >= max(m.baro_jump_stay_frac * abs(j[1]), floor):
             self.jump_confirmed = (t, j[3], abs(j[1]) / j[2])
         self.jump = None
 

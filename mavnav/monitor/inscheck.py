@@ -52,6 +52,8 @@ class InsBaroCheck:
         self._vel += dv_mps
         if baro_m is None:
             return
+        if self._q and t_us - self._q[-1][0] > self.window_us:
+            self._q.clear()  # a gap in the baro: the windows would straddle it
         self._q.append((t_us, self._pos, self._vel, baro_m, float(x[3]), float(P[3, 3])))
         limit = t_us - 2 * self.window_us
         q = self._q
