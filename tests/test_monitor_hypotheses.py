@@ -94,3 +94,49 @@ def test_a_rangefinder_reading_zero_in_flight_is_a_rangefinder_alarm_and_nothing
     alarms = [a for a in r["alarms"] if a["state"] == "alarm"]
     assert alarms and {a["source"] for a in alarms} == {"rangefinder"}, alarms
     assert "reads 0.00 m" in alarms[0]["reason"]
+
+
+def test_with_the_baro_excluded_the_ins_still_shares_the_blame():
+    """Excluding baro_ins takes the baro out, not the INS: a drift of one aux
+    channel running on the INS alone cannot be pinned on that aux sensor
+    until the other channel clears the INS."""
+    live = frozenset((G, R, I))  # baro_ins excluded
+    assert judge([fail(G, I)], live=live).situation == "ambiguous"
+    assert judge([fail(G, I), clear(R, I)], live=live).situation == "isolated"
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_residual_scale_measures_variance_and_correlation(seed):
+    from mavnav.monitor.scale import ResidualScale
+
+    rng = np.random.default_rng(seed)
+    white, ar = ResidualScale(60.0, 0.1, 10.0), ResidualScale(60.0, 0.1, 10.0)
+    z_prev = 0.0
+    for k in range(20000):  # 2000 s at 10 Hz
+        t = k * 100_000
+        white.push(t, float(rng.standard_normal()) * 0.5)
+        z_prev = 0.8 * z_prev + 0.6 * float(rng.standard_normal())  # unit-variance AR(1), phi 0.8
+        ar.push(t, z_prev)
+    assert white.factor == pytest.approx(0.5, rel=0.25)  # a pessimistic model: the test sharpens
+    assert ar.phi == pytest.approx(0.8, abs=0.1)
+    assert ar.factor == pytest.approx(3.0, rel=0.3)  # sqrt((1 + phi) / (1 - phi))
+    clipped = ResidualScale(60.0, 1.0, 2.0)
+    for k in range(3000):
+        clipped.push(k * 100_000, 10.0)
+    assert clipped.factor == 2.0
+
+
+def test_a_baro_spike_is_gated_and_a_baro_step_alarms_within_a_second():
+    """A 6 m baro transient of 0.15 s (prop wash, a pressure glitch) returns:
+    no alarm. The same jump that stays is a baro step: alarmed on baro_ins
+    within 1 s."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from monitor_helpers import fly
+
+    spike = fly(("baro", "step", 40.0, 0.15, 6.0))
+    assert not [a for a in spike.alarms if a.state == "alarm"], spike.alarms
+    step = fly(("baro", "step", 40.0, 20.0, 6.0))
+    first = step.first_alarm_after(40.0)
+    assert list(first) == ["baro_ins"] and first["baro_ins"] - 40.0 <= 1.0
