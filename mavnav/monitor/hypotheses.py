@@ -409,7 +409,8 @@ class HypothesisLogic:
         self.ins_exceed_since = None
         if stat > m.suspect_frac * thr:
             return Verdict("baro/INS", "suspect", implicates, stat=stat, threshold=thr, text=txt)
-        clear = implicates if stat < m.clear_frac * thr and rej == 0 else frozenset()
+        # a second difference is blind to a ramp: a pass rules out the INS, never the baro
+        clear = frozenset(("ins",)) if stat < m.clear_frac * thr and rej == 0 else frozenset()
         return Verdict("baro/INS", "pass", implicates, clear, stat, thr, scale_m=thr)  # V_s follows a slow error in part
 
     def _level_verdicts(self, t: int) -> list[Verdict]:
