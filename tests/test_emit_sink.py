@@ -562,3 +562,31 @@ def test_tcp_peer_gone_is_reported_once_and_sending_resumes(caplog):
     finally:
         sink.close(RunSummary())
         srv.close()
+
+
+def test_reboots_and_input_notices_are_said_at_notice_or_info(peer):
+    """A reboot is said at once (the old boot's pending change first), at NOTICE; the
+    input's notices at INFO (a clock step at NOTICE); none of it is an ERROR."""
+    from mavnav.samples import Notice
+
+    sink = udp_sink(peer, statustext_interval_s=5.0)
+    sink.start({})
+    sink.sample(Notice(recv_s=1.0, kind="vehicle", text="monitoring system 1 (quadrotor, PX4, component 1) "
+                                                        "on udpin:0.0.0.0:14550: the first autopilot heartbeat"))
+    sink.alarm(event(1.0, "gnss", "caution", "nominal", reason="2 samples rejected"))
+    sink.alarm(event(1.5, "gnss", "alarm", "caution", reason="step 9 m"))  # held by the rate limit
+    sink.sample(Notice(recv_s=2.0, kind="clock_step", text="vehicle clock stepped back 1.00 s at 2.000 s (boot 0)"))
+    sink.sample(Reboot(t_us=3_015_000, recv_s=3.0, boot=1, last_t_us=84_987_000))
+    assert peer.wait_for(lambda: len(texts_of(peer.msgs, strict=False)) == 5)
+    got = [(t.text, t.severity) for t in texts_of(peer.msgs)]
+    assert got == [
+        ("mavnav input monitoring system 1 (quadrotor, PX4, component 1) on udpin:0.0.0.0:14550: the first "
+         "autopilot heartbeat", mavlink2.MAV_SEVERITY_INFO),
+        ("mavnav gnss CAUTION: 2 samples rejected", mavlink2.MAV_SEVERITY_WARNING),
+        ("mavnav input vehicle clock stepped back 1.00 s at 2.000 s (boot 0)", mavlink2.MAV_SEVERITY_NOTICE),
+        ("mavnav gnss ALARM: step 9 m", mavlink2.MAV_SEVERITY_CRITICAL),
+        ("mavnav input VEHICLE REBOOTED: its time restarted at 3.0 s after 85.0 s (boot 1); the monitor starts "
+         "again", mavlink2.MAV_SEVERITY_NOTICE),
+    ]
+    for t in texts_of(peer.msgs):  # chunked, never cut
+        assert all(len(p) == 50 for _, p in sorted(t.parts)[:-1]) and len(sorted(t.parts)[-1][1]) < 50

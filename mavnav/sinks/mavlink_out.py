@@ -29,6 +29,10 @@ sends the same frames as the live run did):
   characters; a source still starting up is INFO, not ERROR. A live link's
   loss and recovery are said as they happen (receive clock): ``mavnav input
   LINK LOST: ...`` (ERROR) and ``... LINK RECOVERED after N s`` (NOTICE).
+  Every vehicle reboot the input detects is said at once, ``mavnav input
+  VEHICLE REBOOTED: ...`` (NOTICE, after the old boot's pending texts), and so
+  are the input's notices (a clock step at NOTICE; the vehicle chosen, the
+  systems ignored and what the source waits for at INFO).
 * With ``debug_values``: NAMED_VALUE_FLOAT at the ALTITUDE rate
   (:data:`DEBUG_NAMES`).
 * With ``fusable``: ODOMETRY (331) at the ALTITUDE rate, for an autopilot
@@ -72,11 +76,13 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from ..errors import ConfigError, InputError
 from ..report import CHANNEL_NAMES, PAIR_NAMES, AlarmEvent, EpochReport, RunSummary
-from ..samples import LinkLost, LinkRecovered, Reboot, ReferenceSet
+from ..samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceSet
 from .base import Sink
 from .mavlink_commands import DEFAULT_RATES, IntervalRequester, RateRequest, parse_rate
 from .mavlink_link import LinkWriter
-from .mavlink_statustext import StartupWatch, StatusTextLimiter, format_text, severity, split_text
+from .mavlink_statustext import (
+    StartupWatch, StatusTextLimiter, format_text, input_text, severity, split_text,
+)
 
 log = logging.getLogger("mavnav.sinks.mavlink_out")
 
@@ -251,6 +257,10 @@ class MavlinkOutSink(Sink):
                 self._reset_counter += 1
         elif ts is Reboot:
             self._alt_ref_msl.clear()
+            self._send_texts(self.limiter.flush())  # the old boot's pending changes first
+            self._send_statustext(*input_text(s))
+        elif ts is Notice:
+            self._send_statustext(*input_text(s))
         elif ts is LinkLost:
             # said at once, from the receive clock: the monitor's own input
             # transition waits for the next epoch, i.e. for the link to return
