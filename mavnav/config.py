@@ -264,11 +264,41 @@ class MonitorConfig(_Section):
     profile: str = "small_drone"
 
 
+# ---------------------------------------------------------------- MAVLink output
+
+
+class RequestRatesConfig(_Section):
+    """The input rates ``run --emit input --allow-commands`` asks the autopilot for
+    (MAV_CMD_SET_MESSAGE_INTERVAL). Each stream is asked for the larger of its
+    rate here and ``tta_margin`` times the rate the time-to-alarm needs (the
+    monitor's rule: ``mavnav.audit.required_rates_hz``), so a stricter
+    time-to-alarm asks for more."""
+
+    tta_margin: float = Field(1.25, ge=1.0)
+    imu_rate_hz: float = Field(50.0, gt=0, le=1000)  # the INS drives every filter epoch
+    attitude_rate_hz: float = Field(50.0, gt=0, le=1000)  # rotates each IMU sample to the vertical
+    baro_rate_hz: float = Field(20.0, gt=0, le=1000)  # epochs fall on baro samples
+    # GNSS: not above what receivers give (a faster stream repeats fixes, refused as duplicates)
+    gnss_rate_hz: float = Field(5.0, gt=0, le=1000)
+    range_rate_hz: float = Field(20.0, gt=0, le=1000)
+
+
+class EmitSection(_Section):
+    """What ``--emit`` does beyond the command-line options."""
+
+    request: RequestRatesConfig = RequestRatesConfig()
+    # a COMMAND_ACK is awaited this long (wall clock: the vehicle answers in real
+    # time) before the command is sent again, command_attempts times in all
+    command_timeout_s: float = Field(1.0, gt=0)
+    command_attempts: int = Field(3, ge=1)
+
+
 class Config(_Section):
     sensors: SensorsConfig = SensorsConfig()
     filter: FilterConfig = FilterConfig()
     ingest: IngestConfig = IngestConfig()
     monitor: MonitorConfig = MonitorConfig()
+    emit: EmitSection = EmitSection()
 
 
 # ---------------------------------------------------------------- loading

@@ -146,7 +146,7 @@ def build_sinks(cfg: Config, csv_path: Optional[str], live: bool, viewer_kw: dic
     if csv_path:
         sinks.append(CsvSink(csv_path))
     sinks += make_viewer_sinks(live=live, **viewer_kw)
-    sinks += make_emit_sinks(live_input=live, **emit_kw)
+    sinks += make_emit_sinks(live_input=live, config=cfg, say=lambda text: click.echo(text, err=True), **emit_kw)
     return sinks
 
 
@@ -188,8 +188,9 @@ def run_cmd(connection: str, config_path, sysid, csv_path, inject, **kw) -> None
     try:
         sinks = build_sinks(cfg, csv_path, True, viewer_kw, emit_kw)
         click.echo(f"mavnav: monitoring {connection} ({cfg.monitor.mode} mode); Ctrl-C to stop", err=True)
+        # the sinks write back on the input link, and take the replies to their commands from it
         summary = run_pipeline(source, cfg, sinks, info={"source": connection, "live": True,
-                                                          "link": getattr(source, "mav", None)},
+                                                          "link": live.mav, "link_tap": live.tap},
                                should_stop=lambda: stop["flag"])
     finally:
         source.close()

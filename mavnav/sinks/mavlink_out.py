@@ -50,7 +50,10 @@ sends the same frames as the live run did):
   alarm or the height is not finite. ``reset_counter`` counts reboots and
   reference changes (the origin jumps).
 * With ``allow_commands``: MAV_CMD_SET_MESSAGE_INTERVAL only
-  (:mod:`.mavlink_commands`).
+  (:mod:`.mavlink_commands`), for the streams and rates the configuration's
+  time-to-alarm needs (or the ``message_rates`` given); each COMMAND_ACK
+  verdict (accepted, refused with its result, no answer) and a last word
+  on what was not granted go to ``say`` (the CLI's console) and the log.
 
 The link: a pymavlink connection the CLI opened (``--emit CONNECTION``), or
 ``link=None, use_input_link=True`` (``--emit input``): then ``start(info)``
@@ -78,7 +81,8 @@ from ..errors import ConfigError, InputError
 from ..report import CHANNEL_NAMES, PAIR_NAMES, AlarmEvent, EpochReport, RunSummary
 from ..samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceSet
 from .base import Sink
-from .mavlink_commands import DEFAULT_RATES, IntervalRequester, RateRequest, parse_rate
+from ..config import Config
+from .mavlink_commands import IntervalRequester, RateRequest, needed_rates
 from .mavlink_link import LinkWriter
 from .mavlink_statustext import (
     StartupWatch, StatusTextLimiter, format_text, input_text, severity, split_text,
@@ -114,10 +118,6 @@ _SYSTEM_STATUS = {
 _QUALITY = {"nominal": 100, "caution": 50, "unavailable": 50, "alarm": -1}
 
 
-def _default_rates() -> Tuple[RateRequest, ...]:
-    return tuple(parse_rate(s) for s in DEFAULT_RATES)
-
-
 @dataclass(frozen=True)
 class EmitConfig:
     """What the MAVLink output sends and as whom. Bad values are refused by name."""
@@ -129,7 +129,9 @@ class EmitConfig:
     debug_values: bool = False
     fusable: bool = False
     allow_commands: bool = False
-    message_rates: Tuple[RateRequest, ...] = field(default_factory=_default_rates)
+    # None: the streams the monitor reads, at the rates ``config`` needs (mavlink_commands.needed_rates)
+    message_rates: Optional[Tuple[RateRequest, ...]] = None
+    config: Config = field(default_factory=Config)
     signing_key: Optional[bytes] = None
     signing_link_id: int = 0
     command_timeout_s: float = 1.0
@@ -188,7 +190,9 @@ class MavlinkOutSink(Sink):
         close_link: bool = True,
         clock: Callable[[], float] = time.monotonic,
         wall_clock: Callable[[], float] = time.time,
+        say: Optional[Callable[[str], None]] = None,
     ):
+        """``say``: where the command results are told to a person (the console)."""
         if (link is None) != use_input_link:
             raise ValueError("give a link, or use_input_link=True (not both)")
         self.cfg = config if config is not None else EmitConfig()
@@ -212,11 +216,13 @@ class MavlinkOutSink(Sink):
         self._text_id = 0  # id of the last chunked STATUSTEXT (1..65535; 0 = a single message)
         self._hb = _Ticker(HEARTBEAT_PERIOD_US)
         self._alt = _Ticker(int(round(1e6 / cfg.altitude_rate_hz)))
+        self.say = say
         self.requester: Optional[IntervalRequester] = None
-        if cfg.allow_commands and cfg.message_rates:
+        if cfg.allow_commands and (cfg.message_rates is None or len(cfg.message_rates) > 0):
+            plan = cfg.message_rates if cfg.message_rates is not None else self._plan_rates
             self.requester = IntervalRequester(
-                cfg.message_rates, (cfg.sysid, cfg.compid),
-                timeout_s=cfg.command_timeout_s, attempts=cfg.command_attempts,
+                plan, (cfg.sysid, cfg.compid),
+                timeout_s=cfg.command_timeout_s, attempts=cfg.command_attempts, on_result=self._on_result,
             )
         self._read_link = False  # whether this sink reads replies from its own link
         self._next_poll = -INF
@@ -301,7 +307,7 @@ class MavlinkOutSink(Sink):
         try:
             if self.writer is not None:
                 self._send_texts(self.limiter.flush())
-                if self.requester is not None:
+                if self.requester is not None and not self._commands_reported:
                     self._report_commands()
                 log.info("MAVLink output %s: %s; %d sends failed", self.description,
                          ", ".join(f"{k} {v}" for k, v in sorted(self.counts.items())) or "nothing sent",
@@ -347,18 +353,39 @@ class MavlinkOutSink(Sink):
         if msg is not None:
             self._send(msg)
 
+    def _tell(self, level: int, text: str) -> None:
+        """To the console when there is one (``say``), else to the log at ``level``."""
+        if self.say is not None:
+            self.say(f"mavnav: {text}")
+            level = logging.DEBUG
+        log.log(level, "MAVLink output: %s", text)
+
+    def _plan_rates(self, heartbeat) -> Tuple[RateRequest, ...]:
+        rates = needed_rates(self.cfg.config, heartbeat.autopilot)
+        self._tell(logging.INFO, f"asking the autopilot {heartbeat.get_srcSystem()}/{heartbeat.get_srcComponent()} "
+                                 "for the input rates the time-to-alarm needs: "
+                                 + ", ".join(f"{r.name} {r.rate_hz:g} Hz" for r in rates))
+        return rates
+
+    def _on_result(self, req: RateRequest, result: str) -> None:
+        self._tell(logging.INFO if result == "accepted" else logging.WARNING,
+                   f"SET_MESSAGE_INTERVAL {req.name} {req.rate_hz:g} Hz: {result}")
+
     def _report_commands(self) -> None:
         self._commands_reported = True
         req = self.requester
         results = dict(req.results)
-        for r in self.cfg.message_rates:
-            results.setdefault(r.name, "not sent (no autopilot heard)" if req.target is None else "no answer yet")
+        if req.target is None:
+            self._tell(logging.WARNING, "no autopilot heard: no message rate was requested (not sent)")
+            return
+        for r in req.requests:
+            results.setdefault(r.name, "no answer yet")
         bad = {k: v for k, v in results.items() if v != "accepted"}
         if bad:
-            log.warning("MAVLink output: message rates not granted: %s",
-                        "; ".join(f"{k} {v}" for k, v in bad.items()))
+            self._tell(logging.WARNING, "message rates not granted: " + "; ".join(f"{k} {v}" for k, v in bad.items())
+                       + " (the input may be too slow for the time-to-alarm: see the input source's state)")
         else:
-            log.info("MAVLink output: every requested message rate was accepted")
+            self._tell(logging.INFO, "every requested message rate was accepted")
 
     # ------------------------------------------------------------------ frames
 
