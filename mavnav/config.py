@@ -148,14 +148,17 @@ class FilterConfig(_Section):
 
 
 class ReferenceConfig(_Section):
-    """Where a height reference comes from: config value, HOME_POSITION, or start-up."""
+    """Where a height reference comes from: a configured value, the autopilot's
+    home (HOME_POSITION, GLOBAL_POSITION_INT's alt - relative_alt, or the EKF
+    origin of GPS_GLOBAL_ORIGIN with LOCAL_POSITION_NED), or the start-up mean."""
 
     source: Literal["config", "home", "startup"] = "home"
     value: Optional[float] = None  # Pa for the baro reference, m for the GNSS reference
     startup_window_s: float = Field(2.0, gt=0)
     # With source "home": how long (vehicle time after the first sample that
-    # needs the reference) to wait for HOME_POSITION before falling back to
-    # the start-up estimate. Bounds the memory held while waiting.
+    # needs the reference) to wait for the autopilot's home (any of the three
+    # above) before falling back to the start-up mean. Bounds the memory held
+    # while waiting.
     home_wait_s: float = Field(30.0, gt=0)
 
     @model_validator(mode="after")
@@ -196,6 +199,12 @@ class IngestConfig(_Section):
     reboot_jump_s: float = Field(2.0, gt=0)
     # Messages held (per link) until the first autopilot heartbeat selects the vehicle.
     preselect_max_frames: int = Field(20000, ge=0)
+    # The reference point follows the autopilot's home when it moves (a new home set at
+    # arming): heights are then reported above the new home; the filters keep the point
+    # their references were fixed at (samples.ReferenceMoved). A change of the home's
+    # altitude up to home_move_min_m is no move (HOME_POSITION is in mm; a re-sent home).
+    follow_home: bool = True
+    home_move_min_m: float = Field(0.05, gt=0)
 
 
 # ---------------------------------------------------------------- monitor

@@ -590,3 +590,27 @@ def test_reboots_and_input_notices_are_said_at_notice_or_info(peer):
     ]
     for t in texts_of(peer.msgs):  # chunked, never cut
         assert all(len(p) == 50 for _, p in sorted(t.parts)[:-1]) and len(sorted(t.parts)[-1][1]) < 50
+
+
+def test_a_moved_home_is_said_and_altitude_amsl_stays_the_same_place(peer):
+    """After a ReferenceMoved the heights fed are above the new home (the pipeline moved them):
+    ALTITUDE's altitude_amsl adds the new home's altitude, so the same place gives the same
+    altitude MSL; ODOMETRY's reset_counter counts the jump of its origin; said at NOTICE."""
+    from mavnav.samples import ReferenceMoved
+
+    sink = udp_sink(peer, altitude_rate_hz=50.0, fusable=True)
+    sink.start({})
+    sink.sample(ReferenceSet(t_us=0, recv_s=0.0, boot=0, kind="gnss", value=478.5, alt_ref_msl_m=478.5,
+                             origin="home"))
+    sink.epoch(report(20_000, h=1.5))
+    sink.sample(ReferenceMoved(t_us=30_000, recv_s=0.0, boot=0, alt_ref_msl_m=480.0, shift_m=1.5, offset_m=1.5,
+                               origin="home"))
+    sink.epoch(report(40_000, h=0.0))
+    assert peer.wait_for(lambda: len(peer.of("ALTITUDE")) == 2 and texts_of(peer.msgs, strict=False))
+    a = peer.of("ALTITUDE")
+    assert a[0].altitude_amsl == a[1].altitude_amsl == 480.0
+    assert [o.reset_counter for o in peer.of("ODOMETRY")] == [0, 1]
+    [t] = texts_of(peer.msgs)
+    assert t.severity == mavlink2.MAV_SEVERITY_NOTICE
+    assert t.text == ("mavnav input HOME MOVED +1.50 m to 480.00 m MSL (HOME_POSITION): heights are now above "
+                      "the new home")

@@ -15,12 +15,13 @@ import click
 
 from ..config import Config, load_config
 from ..errors import MavnavError
+from ..home_frame import home_moved_text
 from ..ingest import LiveSource, open_log
 from ..pipeline import run as run_pipeline
 from ..sim.effects import FaultedSource
 from ..sim.faults import parse_faults
 from ..report import AlarmEvent, RunSummary
-from ..samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceSet
+from ..samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceMoved, ReferenceSet
 from ..sinks.base import Sink
 from ..sinks.csv_sink import CsvSink
 from . import main
@@ -83,6 +84,8 @@ class AlarmPrinter(Sink):
             click.echo(f"[t={s.t_us * 1e-6:9.3f} s boot {s.boot}] input       VEHICLE REBOOTED: its time restarted at "
                        f"{s.t_us * 1e-6:.3f} s after {s.last_t_us * 1e-6:.3f} s of boot {s.boot - 1}; "
                        f"the monitor starts again", err=True)
+        elif ts is ReferenceMoved:
+            click.echo(f"[t={s.t_us * 1e-6:9.3f} s boot {s.boot}] input       {home_moved_text(s)}", err=True)
         elif ts is ReferenceSet:
             value = f"{s.value:.1f} Pa" if s.kind == "baro" else f"{s.value:.2f} m"
             at = f", reference point {s.alt_ref_msl_m:.2f} m MSL" if s.alt_ref_msl_m is not None else ""

@@ -17,7 +17,8 @@ sends the same frames as the live run did):
 * ALTITUDE at ``altitude_rate_hz`` (epochs decimated on a vehicle-time grid):
   ``time_usec`` the epoch's vehicle time; ``altitude_local`` and
   ``altitude_relative`` the fused height above the reference (normally home);
-  ``altitude_amsl`` that plus the reference's altitude MSL (NaN if unknown);
+  ``altitude_amsl`` that plus the reference's altitude MSL (NaN if unknown;
+  after a :class:`~mavnav.samples.ReferenceMoved`, the new home's);
   ``altitude_monotonic`` the raw barometric height above the reference (the
   field's recommended "uncorrected barometric altitude"); ``altitude_terrain``
   the rangefinder channel's height and ``bottom_clearance`` the latest
@@ -30,7 +31,8 @@ sends the same frames as the live run did):
   loss and recovery are said as they happen (receive clock): ``mavnav input
   LINK LOST: ...`` (ERROR) and ``... LINK RECOVERED after N s`` (NOTICE).
   Every vehicle reboot the input detects is said at once, ``mavnav input
-  VEHICLE REBOOTED: ...`` (NOTICE, after the old boot's pending texts), and so
+  VEHICLE REBOOTED: ...`` (NOTICE, after the old boot's pending texts), a
+  moved home (``mavnav input HOME MOVED ...``, NOTICE), and so
   are the input's notices (a clock step at NOTICE; the vehicle chosen, the
   systems ignored and what the source waits for at INFO).
 * With ``debug_values``: NAMED_VALUE_FLOAT at the ALTITUDE rate
@@ -79,7 +81,8 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from ..errors import ConfigError, InputError
 from ..report import CHANNEL_NAMES, PAIR_NAMES, AlarmEvent, EpochReport, RunSummary
-from ..samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceSet
+from ..home_frame import home_moved_text
+from ..samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceMoved, ReferenceSet
 from .base import Sink
 from ..config import Config
 from .mavlink_commands import IntervalRequester, RateRequest, needed_rates
@@ -227,6 +230,7 @@ class MavlinkOutSink(Sink):
         self._read_link = False  # whether this sink reads replies from its own link
         self._next_poll = -INF
         self._alt_ref_msl: dict = {}  # ReferenceSet.kind -> alt_ref_msl_m (None if unknown)
+        self._point_msl: Optional[float] = None  # the home the heights are above, once it moved
         self._boot: Optional[int] = None
         self._reset_counter = 0
         self._commands_reported = False
@@ -261,8 +265,13 @@ class MavlinkOutSink(Sink):
             self._alt_ref_msl[s.kind] = s.alt_ref_msl_m
             if prev != "unset":
                 self._reset_counter += 1
+        elif ts is ReferenceMoved:
+            self._point_msl = s.alt_ref_msl_m  # the heights reported are above it from now on
+            self._reset_counter += 1
+            self._send_statustext(mavlink2.MAV_SEVERITY_NOTICE, f"mavnav input {home_moved_text(s)}")
         elif ts is Reboot:
             self._alt_ref_msl.clear()
+            self._point_msl = None
             self._send_texts(self.limiter.flush())  # the old boot's pending changes first
             self._send_statustext(*input_text(s))
         elif ts is Notice:
@@ -417,6 +426,8 @@ class MavlinkOutSink(Sink):
             mavlink2.MAV_TYPE_ONBOARD_CONTROLLER, mavlink2.MAV_AUTOPILOT_INVALID, 0, 0, status, 3)
 
     def _alt_ref(self) -> float:
+        if self._point_msl is not None:
+            return self._point_msl
         for kind in ("gnss", "baro"):
             v = self._alt_ref_msl.get(kind)
             if v is not None:

@@ -49,6 +49,7 @@ from typing import Callable, Optional, Sequence
 import numpy as np
 import rerun as rr
 
+from ..home_frame import home_moved_text
 from ..report import SOURCES, AlarmEvent, EpochReport, RunSummary
 from ..samples import (
     AutopilotHeight,
@@ -60,6 +61,7 @@ from ..samples import (
     Notice,
     RangeHeight,
     Reboot,
+    ReferenceMoved,
     ReferenceSet,
     Rejected,
 )
@@ -481,6 +483,9 @@ class RerunSink(Sink):
             self._style(*bp.input_styles("gaps", kind))
             w.scalars(f"input/gaps/{kind}", ns, (float(s.length_s),))
             w.text("input/events", ns, f"gap: no {s.kind} for {s.length_s:.2f} s", "WARN", bp.STATE_COLOURS["caution"])
+            return
+        if isinstance(s, ReferenceMoved):
+            w.text("input/events", ns, home_moved_text(s), "WARN", bp.STATE_COLOURS["caution"])
             return
         if isinstance(s, ReferenceSet):
             w.text(
