@@ -79,12 +79,12 @@ from typing import Callable, Optional, Tuple
 
 from pymavlink.dialects.v20 import common as mavlink2
 
+from ..config import Config
 from ..errors import ConfigError, InputError
-from ..report import CHANNEL_NAMES, PAIR_NAMES, AlarmEvent, EpochReport, RunSummary
 from ..home_frame import home_moved_text
+from ..report import CHANNEL_NAMES, PAIR_NAMES, AlarmEvent, EpochReport, RunSummary
 from ..samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceMoved, ReferenceSet
 from .base import Sink
-from ..config import Config
 from .mavlink_commands import IntervalRequester, RateRequest, needed_rates
 from .mavlink_link import LinkWriter
 from .mavlink_statustext import (
