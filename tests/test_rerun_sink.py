@@ -404,6 +404,7 @@ def test_live_records_the_same_as_replay_columns(tmp_path, live_batch_s):
         assert same(cols.scalars[entity], live.scalars[entity]), entity
     assert cols.texts == live.texts
     assert cols.states == live.states
+    assert cols.docs == live.docs and len(cols.docs["pilot/readout"]) > 5  # the pilot's readout, rows or columns
 
 
 def test_live_sends_every_quarter_second_of_vehicle_time_and_at_once_after_an_alarm(tmp_path):
