@@ -148,14 +148,17 @@ class FilterConfig(_Section):
 
 
 class ReferenceConfig(_Section):
-    """Where a height reference comes from: config value, HOME_POSITION, or start-up."""
+    """Where a height reference comes from: a configured value, the autopilot's
+    home (HOME_POSITION, GLOBAL_POSITION_INT's alt - relative_alt, or the EKF
+    origin of GPS_GLOBAL_ORIGIN with LOCAL_POSITION_NED), or the start-up mean."""
 
     source: Literal["config", "home", "startup"] = "home"
     value: Optional[float] = None  # Pa for the baro reference, m for the GNSS reference
     startup_window_s: float = Field(2.0, gt=0)
     # With source "home": how long (vehicle time after the first sample that
-    # needs the reference) to wait for HOME_POSITION before falling back to
-    # the start-up estimate. Bounds the memory held while waiting.
+    # needs the reference) to wait for the autopilot's home (any of the three
+    # above) before falling back to the start-up mean. Bounds the memory held
+    # while waiting.
     home_wait_s: float = Field(30.0, gt=0)
 
     @model_validator(mode="after")
@@ -196,6 +199,12 @@ class IngestConfig(_Section):
     reboot_jump_s: float = Field(2.0, gt=0)
     # Messages held (per link) until the first autopilot heartbeat selects the vehicle.
     preselect_max_frames: int = Field(20000, ge=0)
+    # The reference point follows the autopilot's home when it moves (a new home set at
+    # arming): heights are then reported above the new home; the filters keep the point
+    # their references were fixed at (samples.ReferenceMoved). A change of the home's
+    # altitude up to home_move_min_m is no move (HOME_POSITION is in mm; a re-sent home).
+    follow_home: bool = True
+    home_move_min_m: float = Field(0.05, gt=0)
 
 
 # ---------------------------------------------------------------- monitor
@@ -305,11 +314,41 @@ class MonitorConfig(_Section):
     fail_size_tau_s: float = Field(1.0, gt=0)
 
 
+# ---------------------------------------------------------------- MAVLink output
+
+
+class RequestRatesConfig(_Section):
+    """The input rates ``run --emit input --allow-commands`` asks the autopilot for
+    (MAV_CMD_SET_MESSAGE_INTERVAL). Each stream is asked for the larger of its
+    rate here and ``tta_margin`` times the rate the time-to-alarm needs (the
+    monitor's rule: ``mavnav.audit.required_rates_hz``), so a stricter
+    time-to-alarm asks for more."""
+
+    tta_margin: float = Field(1.25, ge=1.0)
+    imu_rate_hz: float = Field(50.0, gt=0, le=1000)  # the INS drives every filter epoch
+    attitude_rate_hz: float = Field(50.0, gt=0, le=1000)  # rotates each IMU sample to the vertical
+    baro_rate_hz: float = Field(20.0, gt=0, le=1000)  # epochs fall on baro samples
+    # GNSS: not above what receivers give (a faster stream repeats fixes, refused as duplicates)
+    gnss_rate_hz: float = Field(5.0, gt=0, le=1000)
+    range_rate_hz: float = Field(20.0, gt=0, le=1000)
+
+
+class EmitSection(_Section):
+    """What ``--emit`` does beyond the command-line options."""
+
+    request: RequestRatesConfig = RequestRatesConfig()
+    # a COMMAND_ACK is awaited this long (wall clock: the vehicle answers in real
+    # time) before the command is sent again, command_attempts times in all
+    command_timeout_s: float = Field(1.0, gt=0)
+    command_attempts: int = Field(3, ge=1)
+
+
 class Config(_Section):
     sensors: SensorsConfig = SensorsConfig()
     filter: FilterConfig = FilterConfig()
     ingest: IngestConfig = IngestConfig()
     monitor: MonitorConfig = MonitorConfig()
+    emit: EmitSection = EmitSection()
 
 
 # ---------------------------------------------------------------- loading

@@ -3,6 +3,8 @@
 Live and replay run this same function; only the source differs (a
 :class:`~mavnav.ingest.TlogSource` or a :class:`~mavnav.ingest.LiveSource`)
 and the CLI chooses the sinks. The monitor takes time from the data only.
+Sinks see heights above the autopilot's current home (:mod:`.home_frame`);
+the monitor sees them in the frame its references were fixed in.
 """
 
 from __future__ import annotations
@@ -10,6 +12,7 @@ from __future__ import annotations
 from typing import Callable, Iterable, Optional
 
 from .config import Config
+from .home_frame import HomeFrame
 from .monitor import Monitor
 from .report import RunSummary
 from .samples import Reboot
@@ -33,10 +36,11 @@ def run(
     summary = RunSummary()
     out = SinkSet(sinks, summary)
     monitor = Monitor(cfg)
+    frame = HomeFrame()
     out.start({"mode": cfg.monitor.mode, "config": cfg, **(info or {})})
     try:
         for s in source:
-            out.sample(s)
+            out.sample(frame.sample(s))
             if isinstance(s, Reboot):
                 summary.reboots += 1
             for report, events in monitor.push(s):
@@ -52,7 +56,7 @@ def run(
                 for ev in events:
                     summary.alarms.append(ev)
                     out.alarm(ev)
-                out.epoch(report)
+                out.epoch(frame.report(report))
             if should_stop is not None and should_stop():
                 break
     finally:

@@ -11,7 +11,7 @@ MAVLink field names never appear past this module's producers (the
 normaliser); consumers see only these types.
 
 Event types (``Reboot``, ``Gap``, ``LinkLost``, ``LinkRecovered``,
-``Rejected``, ``ReferenceSet``, ``Notice``) travel in the same stream as the samples so
+``Rejected``, ``ReferenceSet``, ``ReferenceMoved``, ``Notice``) travel in the same stream as the samples so
 that one ordered fold sees everything.
 """
 
@@ -111,6 +111,25 @@ class ReferenceSet:
 
 
 @dataclass(frozen=True, slots=True)
+class ReferenceMoved:
+    """The autopilot's home moved (a new home set at arming, another altitude): heights are
+    reported above the new point from here on.
+
+    The references of :class:`ReferenceSet` stay where they were fixed, so the
+    filters see no step (a step in every height would be a fault to them); the
+    pipeline reports heights ``offset_m`` lower than the filters have them.
+    """
+
+    t_us: int  # vehicle time of the message that moved it
+    recv_s: float
+    boot: int
+    alt_ref_msl_m: float  # the new reference point's altitude MSL
+    shift_m: float  # how far it moved (up positive) from the previous point
+    offset_m: float  # the new point's altitude above the point the references were fixed at
+    origin: Literal["home", "autopilot_home"]  # HOME_POSITION, or GLOBAL_POSITION_INT's alt - relative_alt
+
+
+@dataclass(frozen=True, slots=True)
 class Reboot:
     """Vehicle time jumped back: the vehicle rebooted. The pipeline restarts."""
 
@@ -173,5 +192,5 @@ class Notice:
 
 
 Measurement = Union[SpecificForceUp, BaroHeight, GnssHeight, RangeHeight, AutopilotHeight]
-Event = Union[ReferenceSet, Reboot, Gap, LinkLost, LinkRecovered, Rejected, Notice]
+Event = Union[ReferenceSet, ReferenceMoved, Reboot, Gap, LinkLost, LinkRecovered, Rejected, Notice]
 Sample = Union[Measurement, Event]

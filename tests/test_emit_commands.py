@@ -14,7 +14,8 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from mavnav.errors import ConfigError
 from mavnav.report import RunSummary
-from mavnav.sinks.mavlink_commands import DEFAULT_RATES, parse_rate
+from mavnav.config import config_from_dict
+from mavnav.sinks.mavlink_commands import needed_rates, parse_rate
 from mavnav.sinks.mavlink_out import EmitConfig, MavlinkOutSink
 from test_emit_sink import Peer, report, udp_sink
 
@@ -102,9 +103,11 @@ def test_requests_are_checked_retried_and_refusals_reported(caplog):
         assert by_msg[ids["DISTANCE_SENSOR"]][0].param2 == 100_000
         assert all(c.param7 == 0 for c in cmds)  # the flight stack's default address
         warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
-        assert any("refused ATTITUDE" in w and "UNSUPPORTED" in w for w in warnings)
-        assert any("no COMMAND_ACK for SCALED_PRESSURE" in w for w in warnings)
+        assert "MAVLink output: SET_MESSAGE_INTERVAL ATTITUDE 40 Hz: refused: UNSUPPORTED" in warnings
+        assert "MAVLink output: SET_MESSAGE_INTERVAL SCALED_PRESSURE 20 Hz: no answer" in warnings
         assert any("not granted" in w and "SCALED_PRESSURE no answer" in w for w in warnings)
+        infos = [r.getMessage() for r in caplog.records if r.levelno == logging.INFO]
+        assert "MAVLink output: SET_MESSAGE_INTERVAL HIGHRES_IMU 50 Hz: accepted" in infos
     finally:
         sink.close(RunSummary())
         ap_peer.close()
@@ -137,7 +140,7 @@ def test_no_command_before_an_autopilot_is_heard(caplog):
         assert sink.requester.target is None and not gcs_peer.of("COMMAND_LONG")
         with caplog.at_level(logging.WARNING, logger="mavnav.sinks.mavlink_out"):
             sink.close(RunSummary())
-        assert any("not sent (no autopilot heard)" in r.getMessage() for r in caplog.records)
+        assert any("no autopilot heard: no message rate was requested" in r.getMessage() for r in caplog.records)
     finally:
         gcs_peer.close()
 
@@ -188,6 +191,42 @@ def test_commands_on_the_input_link_use_the_sources_tap():
         vehicle.close()
 
 
+def test_the_live_source_taps_the_vehicles_heartbeat_and_command_acks():
+    """LiveSource.tap: the monitored vehicle's HEARTBEAT and COMMAND_ACK as pymavlink messages, in the
+    iterating thread; another autopilot's on the same link are not passed on."""
+    import threading
+
+    from mavnav.ingest import LiveSource
+
+    src = LiveSource("udpin:127.0.0.1:0")
+    got = []
+    src.tap(lambda m: got.append((m.get_type(), m.get_srcSystem(), m.get_srcComponent(),
+                                  threading.current_thread().name, m)))
+    vehicle, other = Peer(sysid=3, compid=1), Peer(sysid=4, compid=1)
+    addr = ("127.0.0.1", src.local_address[1])
+    seen = []
+    th = threading.Thread(target=lambda: seen.extend(src), name="iterating", daemon=True)
+    th.start()
+    try:
+        vehicle.send(autopilot_heartbeat(), addr)  # the first autopilot heard: the vehicle
+        other.send(autopilot_heartbeat(), addr)
+        other.send(R.MAVLink_command_ack_message(511, ACCEPTED, 0, 0, 1, 191), addr)
+        vehicle.send(R.MAVLink_command_ack_message(511, DENIED, 0, 0, 1, 191), addr)
+        deadline = time.monotonic() + 5
+        while len(got) < 2 and time.monotonic() < deadline:
+            time.sleep(0.01)  # bounded wait for the datagrams to be parsed
+    finally:
+        src.close()
+        th.join(5)
+        vehicle.close()
+        other.close()
+    assert [g[:4] for g in got] == [("HEARTBEAT", 3, 1, "iterating"), ("COMMAND_ACK", 3, 1, "iterating")]
+    hb, ack = got[0][4], got[1][4]
+    assert hb.autopilot == R.MAV_AUTOPILOT_ARDUPILOTMEGA and hb.type == R.MAV_TYPE_QUADROTOR
+    assert (ack.command, ack.result, ack.target_system, ack.target_component) == (511, DENIED, 1, 191)
+    assert src.stats.vehicle.sysid == 3
+
+
 def test_input_link_without_a_tap_sends_no_command(caplog):
     from pymavlink import mavutil
 
@@ -220,7 +259,20 @@ def test_wrong_rate_requests_are_refused_by_name(spec, match):
         parse_rate(spec)
 
 
-def test_default_rates_name_real_messages():
-    reqs = [parse_rate(s) for s in DEFAULT_RATES]
-    assert [r.msg_id for r in reqs] == [105, 30, 29, 24, 132]
+def test_needed_rates_are_the_streams_the_monitor_reads_at_the_rates_the_config_needs():
+    px4 = needed_rates(config_from_dict({}), R.MAV_AUTOPILOT_PX4)
+    assert [(r.name, r.msg_id, r.rate_hz) for r in px4] == [
+        ("HIGHRES_IMU", 105, 50.0), ("ATTITUDE", 30, 50.0), ("SCALED_PRESSURE", 29, 20.0),
+        ("GPS_RAW_INT", 24, 5.0), ("DISTANCE_SENSOR", 132, 20.0)]
+    # ArduPilot fills RAW_IMU (in milli-g): the IMU the normaliser uses there
+    ap = needed_rates(config_from_dict({}), R.MAV_AUTOPILOT_ARDUPILOTMEGA)
+    assert [r.name for r in ap] == ["RAW_IMU", "ATTITUDE", "SCALED_PRESSURE", "GPS_RAW_INT", "DISTANCE_SENSOR"]
+    # the configured sources, and a stricter time-to-alarm asks for more: 4 rejections in 0.5 s
+    # need 8 Hz of GNSS and rangefinder, times the margin 1.25
+    cfg = config_from_dict({"monitor": {"time_to_alarm_s": 0.5},
+                            "ingest": {"baro_instance": 2, "imu_source": "SCALED_IMU2", "range_source": "RANGEFINDER"},
+                            "emit": {"request": {"range_rate_hz": 5.0}}})
+    strict = {r.name: r.rate_hz for r in needed_rates(cfg, R.MAV_AUTOPILOT_ARDUPILOTMEGA)}
+    assert strict == {"SCALED_IMU2": 50.0, "ATTITUDE": 50.0, "SCALED_PRESSURE2": 20.0, "GPS_RAW_INT": 10.0,
+                      "RANGEFINDER": 10.0}
     assert parse_rate("rangefinder:10").msg_id == 173  # ArduPilot's dialect too

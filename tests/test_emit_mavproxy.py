@@ -32,7 +32,7 @@ from mavnav.sinks.mavlink_commands import parse_rate
 from mavnav.sinks.mavlink_out import EmitConfig, MavlinkOutSink
 from test_emit_commands import Autopilot
 from test_emit_run import LiveRun, send_paced, tlog_frames
-from test_emit_sink import Peer
+from test_emit_sink import Peer, texts_of
 
 pytest.importorskip("MAVProxy", reason="MAVProxy is not installed (pip install MAVProxy)")
 
@@ -141,9 +141,11 @@ def test_mavnav_behind_mavproxy_reaches_the_vehicle(ground, frames):
     alts = from_mavnav("ALTITUDE")
     assert all(0 <= a.time_usec <= REPLAY_S * 1e6 + 1e6 for a in alts)
     assert all(-3.0 < a.altitude_local < 20.0 for a in alts if a.altitude_local == a.altitude_local)
-    texts = [m.text for m in from_mavnav("STATUSTEXT")]
-    assert all(t.startswith("mavnav ") and len(t) <= 50 for t in texts)
-    assert {e.source for e in summary.alarms} >= {t.split()[1] for t in texts}
+    texts = [t.text for t in texts_of(from_mavnav("STATUSTEXT"))]  # chunks joined
+    assert all(t.startswith("mavnav ") for t in texts) and all(len(m.text) <= 50 for m in from_mavnav("STATUSTEXT"))
+    # the sources' transitions, and what the input said (the vehicle monitored)
+    assert {e.source for e in summary.alarms} | {"input"} >= {t.split()[1] for t in texts}
+    assert any(t.startswith("mavnav input monitoring system 1") for t in texts)
     # commands went through MAVProxy to the vehicle, and its ACKs came back
     assert [int(c.param1) for c in ap.commands] == [105, 29]
     assert all(c.command == 511 and c.target_system == 1 and c.target_component == 1 for c in ap.commands)

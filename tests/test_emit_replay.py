@@ -12,7 +12,7 @@ from mavnav.config import Config
 from mavnav.ingest import TlogSource
 from mavnav.pipeline import run
 from mavnav.report import AlarmEvent
-from mavnav.samples import LinkLost, LinkRecovered, ReferenceSet
+from mavnav.samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceSet
 from mavnav.sim import load_scenario, simulate
 from mavnav.sinks.base import Sink
 from mavnav.sinks.mavlink_statustext import SEVERITY_FOR_STATE, StatusTextLimiter, format_text
@@ -32,7 +32,7 @@ class Recorder(Sink):
     def sample(self, s):
         if isinstance(s, ReferenceSet):
             self.references.append(s)
-        elif isinstance(s, (LinkLost, LinkRecovered)):
+        elif isinstance(s, (LinkLost, LinkRecovered, Reboot, Notice)):
             self.order.append(s)
 
     def epoch(self, report):
@@ -75,6 +75,14 @@ def expected_texts(order, interval_us=0):
             out.append((f"mavnav input LINK LOST: no data for {item.silent_s:.1f} s", mavlink2.MAV_SEVERITY_ERROR, item))
         elif isinstance(item, LinkRecovered):
             out.append((f"mavnav input LINK RECOVERED after {item.outage_s:.1f} s", mavlink2.MAV_SEVERITY_NOTICE, item))
+        elif isinstance(item, Reboot):  # said at once, the old boot's pending texts first
+            send(lim.flush())
+            out.append((f"mavnav input VEHICLE REBOOTED: its time restarted at {item.t_us * 1e-6:.1f} s after "
+                        f"{item.last_t_us * 1e-6:.1f} s (boot {item.boot}); the monitor starts again",
+                        mavlink2.MAV_SEVERITY_NOTICE, item))
+        elif isinstance(item, Notice):
+            sev = mavlink2.MAV_SEVERITY_NOTICE if item.kind == "clock_step" else mavlink2.MAV_SEVERITY_INFO
+            out.append((" ".join(f"mavnav input {item.text}".split()), sev, item))
         else:
             used.update((item.boot, k) for k, st in item.sources.items() if st.state != "unavailable")
             send(lim.due(item.boot, item.t_us))
@@ -107,7 +115,8 @@ def test_replayed_fault_scenario_reaches_the_peer(gnss_step_run):
     rec, sinks, peers, summary, fault = gnss_step_run
     sink, peer = sinks["every"], peers["every"]
     assert not summary.sink_failures and summary.alarms == rec.events
-    n_text = len(rec.events)
+    n_text = len(expected_texts(rec.order))  # every transition, and what the input said (the vehicle chosen)
+    assert n_text > len(rec.events)
     first, last = rec.reports[0].t_us, rec.reports[-1].t_us
     sent = sink.counts["ALTITUDE"]
     assert peer.wait_for(lambda: len(texts_of(peer.msgs, strict=False)) == n_text and len(peer.of("ALTITUDE")) == sent)
@@ -131,6 +140,10 @@ def test_replayed_fault_scenario_reaches_the_peer(gnss_step_run):
     want = expected_texts(rec.order)
     assert [(t.text, t.severity) for t in texts] == [(w[0], w[1]) for w in want]
     assert any(w[1] == mavlink2.MAV_SEVERITY_INFO for w in want)  # start-up: sources wait for data
+    assert any(t.text.startswith("mavnav input monitoring system 1") and t.severity == mavlink2.MAV_SEVERITY_INFO
+               for t in texts)
+    texts = [t for t, w in zip(texts, want) if isinstance(w[2], AlarmEvent)]  # the transitions
+    assert len(texts) == len(rec.events)
     for ev, st in zip(rec.events, texts):
         i = seq.index(st.first)
         before = [m.time_usec for m in seq[:i] if m.get_type() == "ALTITUDE"]
@@ -154,7 +167,7 @@ def test_rate_limited_statustexts_keep_every_sources_latest_state(gnss_step_run)
     assert peer.wait_for(lambda: len(texts_of(peer.msgs, strict=False)) >= len(expected))
     texts = [t.text for t in texts_of(peer.msgs)]
     assert texts == [e[0] for e in expected]
-    assert len(texts) < len(rec.events)  # something was coalesced
+    assert len([t for t in texts if not t.startswith("mavnav input monitoring")]) < len(rec.events)  # coalesced
     # the last STATUSTEXT of each source names the state it ended in
     final = {}
     for ev in rec.events:
@@ -212,5 +225,12 @@ def test_statustext_at_every_transition_of_the_sitl_logs(name):
         if summary.reboots:
             times = [m.time_usec for m in peer.of("ALTITUDE")]
             assert any(b < a for a, b in zip(times, times[1:]))  # the vehicle clock restarted on the wire too
+            # every reboot said, at NOTICE: starting again is no error
+            said = [t for t in texts if "VEHICLE REBOOTED" in t.text]
+            assert len(said) == summary.reboots and all(t.severity == mavlink2.MAV_SEVERITY_NOTICE for t in said)
+        # nothing the input says about itself, nor a source starting up, is an ERROR
+        for (_, _, item), t in zip(want, texts):
+            if isinstance(item, (Reboot, Notice)) or "STARTING" in t.text:
+                assert t.severity >= mavlink2.MAV_SEVERITY_NOTICE, t.text
     finally:
         peer.close()

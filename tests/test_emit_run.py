@@ -13,6 +13,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -224,3 +225,102 @@ def test_live_run_sends_no_command_without_allow_commands(tmp_path, frames):
     finally:
         vehicle.close()
         autopilot.close()
+
+
+def test_live_run_asks_its_input_link_for_the_rates_and_says_the_answers(tmp_path, gnss_step):
+    """``mavnav run --emit input --allow-commands``: SET_MESSAGE_INTERVAL for the streams the
+    monitor reads from this autopilot (PX4 here), at the rates the configuration needs, sent back
+    out of the link it listens on; every COMMAND_ACK verdict said on the console.
+
+    The vehicle is a UDP endpoint on 127.0.0.1 that streams a simulated flight (re-encoded in its
+    own MAVLink sequence) and answers each COMMAND_LONG between two telemetry frames, as an
+    autopilot's loop does: accepted, temporarily rejected then accepted, denied, silent,
+    unsupported."""
+    from pymavlink.dialects.v20 import common as R
+
+    from mavnav.config import config_from_dict
+    from mavnav.sinks.mavlink_commands import needed_rates
+
+    cfg_path = tmp_path / "commands.yaml"
+    cfg_path.write_text("emit: {command_timeout_s: 0.3, command_attempts: 2}\n")
+    rates = needed_rates(config_from_dict({}), R.MAV_AUTOPILOT_PX4)
+    ids = {r.name: r.msg_id for r in rates}
+    policy = {ids["HIGHRES_IMU"]: [R.MAV_RESULT_ACCEPTED],
+              ids["ATTITUDE"]: [R.MAV_RESULT_TEMPORARILY_REJECTED, R.MAV_RESULT_ACCEPTED],
+              ids["SCALED_PRESSURE"]: [R.MAV_RESULT_DENIED],
+              ids["GPS_RAW_INT"]: [None],  # never answers
+              ids["DISTANCE_SENSOR"]: [R.MAV_RESULT_UNSUPPORTED]}
+    commands, replies = [], []
+    lock = threading.Lock()
+
+    def handle(peer, m):  # the receive thread: the answer waits for the vehicle's next loop
+        if m.get_type() != "COMMAND_LONG":
+            return
+        with lock:
+            commands.append(m)
+            answers = policy[int(m.param1)]
+            result = answers.pop(0) if len(answers) > 1 else answers[0]
+            if result is not None:
+                replies.append(R.MAVLink_command_ack_message(m.command, result, 0, 0, m.get_srcSystem(),
+                                                             m.get_srcComponent()))
+
+    vehicle = Peer(sysid=1, compid=1)
+    vehicle.handler = handle
+    log = mavutil.mavlink_connection(str(gnss_step))
+    msgs = []
+    while True:
+        m = log.recv_msg()
+        if m is None:
+            break
+        msgs.append((m._timestamp, m))
+    log.close()
+    run = LiveRun(tmp_path, ["--emit", "input", "--allow-commands", "--config", str(cfg_path)])
+    try:
+        assert run.wait_for_text("mavnav: monitoring"), run.stderr()
+        addr = ("127.0.0.1", run.port)
+        start, t0 = time.monotonic(), msgs[0][0]
+        for k, (t, m) in enumerate(msgs):
+            wait = start + (t - t0) / 4.0 - time.monotonic()
+            if wait > 0:
+                time.sleep(wait)  # the simulated vehicle's clock (4x), not a wait for a result
+            with lock:
+                pending, replies[:] = list(replies), []
+            for ack in pending:
+                vehicle.send(ack, addr)
+            vehicle.send(m, addr)
+            if k % 200 == 0 and "message rates not granted" in run.stderr():
+                break
+        else:
+            pytest.fail("the run never reported its requests:\n" + run.stderr())
+    finally:
+        err = run.stop()
+        vehicle.close()
+    assert run.proc.returncode == 0, err
+    # the commands: SET_MESSAGE_INTERVAL only, from mavnav's component to the autopilot, one message at a time
+    assert {c.command for c in commands} == {R.MAV_CMD_SET_MESSAGE_INTERVAL}
+    assert all((c.get_srcSystem(), c.get_srcComponent(), c.target_system, c.target_component) == (1, 191, 1, 1)
+               for c in commands)
+    asked = [(int(c.param1), c.param2, c.confirmation) for c in commands]
+    us = {r.msg_id: round(1e6 / r.rate_hz) for r in rates}
+    assert asked == [
+        (ids["HIGHRES_IMU"], us[ids["HIGHRES_IMU"]], 0),
+        (ids["ATTITUDE"], us[ids["ATTITUDE"]], 0), (ids["ATTITUDE"], us[ids["ATTITUDE"]], 1),
+        (ids["SCALED_PRESSURE"], us[ids["SCALED_PRESSURE"]], 0),
+        (ids["GPS_RAW_INT"], us[ids["GPS_RAW_INT"]], 0), (ids["GPS_RAW_INT"], us[ids["GPS_RAW_INT"]], 1),
+        (ids["DISTANCE_SENSOR"], us[ids["DISTANCE_SENSOR"]], 0),
+    ]
+    # what the console says, in order
+    said = [ln for ln in err.splitlines() if ln.startswith("mavnav: ") and "monitoring" not in ln]
+    assert said == [
+        "mavnav: asking the autopilot 1/1 for the input rates the time-to-alarm needs: HIGHRES_IMU 50 Hz, "
+        "ATTITUDE 50 Hz, SCALED_PRESSURE 20 Hz, GPS_RAW_INT 5 Hz, DISTANCE_SENSOR 20 Hz",
+        "mavnav: SET_MESSAGE_INTERVAL HIGHRES_IMU 50 Hz: accepted",
+        "mavnav: SET_MESSAGE_INTERVAL ATTITUDE 50 Hz: accepted",
+        "mavnav: SET_MESSAGE_INTERVAL SCALED_PRESSURE 20 Hz: refused: DENIED",
+        "mavnav: SET_MESSAGE_INTERVAL GPS_RAW_INT 5 Hz: no answer",
+        "mavnav: SET_MESSAGE_INTERVAL DISTANCE_SENSOR 20 Hz: refused: UNSUPPORTED",
+        "mavnav: message rates not granted: SCALED_PRESSURE refused: DENIED; GPS_RAW_INT no answer; "
+        "DISTANCE_SENSOR refused: UNSUPPORTED (the input may be too slow for the time-to-alarm: see the input "
+        "source's state)",
+    ]
+    assert "Traceback" not in err

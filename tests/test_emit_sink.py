@@ -562,3 +562,55 @@ def test_tcp_peer_gone_is_reported_once_and_sending_resumes(caplog):
     finally:
         sink.close(RunSummary())
         srv.close()
+
+
+def test_reboots_and_input_notices_are_said_at_notice_or_info(peer):
+    """A reboot is said at once (the old boot's pending change first), at NOTICE; the
+    input's notices at INFO (a clock step at NOTICE); none of it is an ERROR."""
+    from mavnav.samples import Notice
+
+    sink = udp_sink(peer, statustext_interval_s=5.0)
+    sink.start({})
+    sink.sample(Notice(recv_s=1.0, kind="vehicle", text="monitoring system 1 (quadrotor, PX4, component 1) "
+                                                        "on udpin:0.0.0.0:14550: the first autopilot heartbeat"))
+    sink.alarm(event(1.0, "gnss", "caution", "nominal", reason="2 samples rejected"))
+    sink.alarm(event(1.5, "gnss", "alarm", "caution", reason="step 9 m"))  # held by the rate limit
+    sink.sample(Notice(recv_s=2.0, kind="clock_step", text="vehicle clock stepped back 1.00 s at 2.000 s (boot 0)"))
+    sink.sample(Reboot(t_us=3_015_000, recv_s=3.0, boot=1, last_t_us=84_987_000))
+    assert peer.wait_for(lambda: len(texts_of(peer.msgs, strict=False)) == 5)
+    got = [(t.text, t.severity) for t in texts_of(peer.msgs)]
+    assert got == [
+        ("mavnav input monitoring system 1 (quadrotor, PX4, component 1) on udpin:0.0.0.0:14550: the first "
+         "autopilot heartbeat", mavlink2.MAV_SEVERITY_INFO),
+        ("mavnav gnss CAUTION: 2 samples rejected", mavlink2.MAV_SEVERITY_WARNING),
+        ("mavnav input vehicle clock stepped back 1.00 s at 2.000 s (boot 0)", mavlink2.MAV_SEVERITY_NOTICE),
+        ("mavnav gnss ALARM: step 9 m", mavlink2.MAV_SEVERITY_CRITICAL),
+        ("mavnav input VEHICLE REBOOTED: its time restarted at 3.0 s after 85.0 s (boot 1); the monitor starts "
+         "again", mavlink2.MAV_SEVERITY_NOTICE),
+    ]
+    for t in texts_of(peer.msgs):  # chunked, never cut
+        assert all(len(p) == 50 for _, p in sorted(t.parts)[:-1]) and len(sorted(t.parts)[-1][1]) < 50
+
+
+def test_a_moved_home_is_said_and_altitude_amsl_stays_the_same_place(peer):
+    """After a ReferenceMoved the heights fed are above the new home (the pipeline moved them):
+    ALTITUDE's altitude_amsl adds the new home's altitude, so the same place gives the same
+    altitude MSL; ODOMETRY's reset_counter counts the jump of its origin; said at NOTICE."""
+    from mavnav.samples import ReferenceMoved
+
+    sink = udp_sink(peer, altitude_rate_hz=50.0, fusable=True)
+    sink.start({})
+    sink.sample(ReferenceSet(t_us=0, recv_s=0.0, boot=0, kind="gnss", value=478.5, alt_ref_msl_m=478.5,
+                             origin="home"))
+    sink.epoch(report(20_000, h=1.5))
+    sink.sample(ReferenceMoved(t_us=30_000, recv_s=0.0, boot=0, alt_ref_msl_m=480.0, shift_m=1.5, offset_m=1.5,
+                               origin="home"))
+    sink.epoch(report(40_000, h=0.0))
+    assert peer.wait_for(lambda: len(peer.of("ALTITUDE")) == 2 and texts_of(peer.msgs, strict=False))
+    a = peer.of("ALTITUDE")
+    assert a[0].altitude_amsl == a[1].altitude_amsl == 480.0
+    assert [o.reset_counter for o in peer.of("ODOMETRY")] == [0, 1]
+    [t] = texts_of(peer.msgs)
+    assert t.severity == mavlink2.MAV_SEVERITY_NOTICE
+    assert t.text == ("mavnav input HOME MOVED +1.50 m to 480.00 m MSL (HOME_POSITION): heights are now above "
+                      "the new home")

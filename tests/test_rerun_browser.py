@@ -1,11 +1,14 @@
-"""The web viewer in a real browser: a replay served on 127.0.0.1 (gRPC data
-server + web viewer), opened in headless Chromium (WebGL on SwiftShader).
+"""The web viewer in a real browser: a fault flight (a simulated GNSS step) replayed
+and served on 127.0.0.1 (gRPC data server + web viewer), opened in headless
+Chromium (WebGL on SwiftShader).
 
 The test waits until the viewer has received every entity (read from the
 viewer itself: its web handle encodes the recording it holds as RRD), then
-screenshots the page and checks that the plots are drawn: the series'
-colours are on screen in quantity, which a blank or loading page does not
-show. Needs Debian's chromium at /usr/bin/chromium and the Python package
+screenshots the page and checks that the pilot's tab is drawn: the fused
+line, the sensors' dots and the alarm in the state strip are on screen in
+quantity, which a blank or loading page does not show. The screenshot is
+kept (``$MAVNAV_SCREENSHOT_DIR``, default /tmp) for a person to look at.
+Needs Debian's chromium at /usr/bin/chromium and the Python package
 playwright.
 """
 
@@ -21,11 +24,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mavnav import pipeline, synthetic
+from mavnav import pipeline
 from mavnav.cli.viewer_options import make_viewer_sinks
+from mavnav.config import Config
+from mavnav.ingest import TlogSource
+from mavnav.sim import load_scenario, simulate
 from mavnav.sinks import rerun_blueprint as bp
 
-from estimator_helpers import config_for
 from test_rerun_sink import Capture, read_rrd
 
 CHROMIUM = "/usr/bin/chromium"
@@ -39,6 +44,7 @@ FLAGS = [
     "--disable-quic",
 ]
 SHOT_DIR = Path(os.environ.get("MAVNAV_SCREENSHOT_DIR", "/tmp"))
+SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"
 
 # The viewer's own copy of the recording, as RRD bytes, base64 (chunked: large arrays).
 SAVE_JS = """() => {
@@ -52,6 +58,7 @@ SAVE_JS = """() => {
 }"""
 
 EXPECTED = {
+    "pilot/readout", "heights/rejected/gnss",
     "heights/fused", "heights/fused_sigma", "heights/raw/baro", "heights/raw/gnss", "heights/raw/rangefinder",
     *(f"heights/channel/{c}" for c in ("gnss", "rangefinder", "baro")),
     *(f"integrity/pairs/{p}/{w}" for p in ("gnss-rng", "gnss-baro", "rng-baro") for w in ("diff", "threshold")),
@@ -66,8 +73,16 @@ def colour_pixels(rgb: np.ndarray, colour, tol: int = 40) -> int:
     return int((np.abs(rgb.astype(int) - np.array(colour)).max(axis=2) <= tol).sum())
 
 
+def on_white(colour, alpha: float):
+    """What ``colour`` drawn with opacity ``alpha`` looks like on the light theme's white."""
+    return tuple(alpha * c + (1 - alpha) * 255 for c in colour)
+
+
+LANE_OPACITY = 0.8  # the viewer draws state lanes a little see-through (measured on its screenshots)
+
+
 @pytest.mark.browser
-def test_web_viewer_shows_the_replay_in_chromium(tmp_path):
+def test_web_viewer_shows_the_pilot_a_fault_flight_in_chromium(tmp_path):
     if not Path(CHROMIUM).exists() or shutil.which(CHROMIUM) is None:
         pytest.skip("Debian's chromium is not installed at /usr/bin/chromium (apt-get install -y chromium)")
     from PIL import Image
@@ -78,14 +93,13 @@ def test_web_viewer_shows_the_replay_in_chromium(tmp_path):
                                echo=said.append)
     try:
         assert sink.page_url and said == [f"mavnav: Rerun web viewer at {sink.page_url}"]
-        flight = synthetic.paper_flight(seed=3, schedule=synthetic.Schedule(duration_s=20.0))
+        res = simulate(load_scenario(SCENARIOS / "px4_hover_gnss_step.yaml"), 7)
+        tlog = tmp_path / "gnss_step.tlog"
+        tlog.write_bytes(res.tlog)
         capture = Capture()
-        # the filters told the simulated sensors' error model (the defaults
-        # are sized on real baros, far quieter than the paper's sigma_bb 1 m):
-        # a nominal flight, so the nominal lane is on screen
-        cfg = config_for(synthetic.TrueSensors())
-        summary = pipeline.run(flight.samples, cfg, [capture, sink], info={"source": "paper_flight(3)"})
-        assert summary.sink_failures == {} and summary.epochs == 1000
+        summary = pipeline.run(TlogSource(tlog), Config(), [capture, sink], info={"source": tlog.name})
+        assert summary.sink_failures == {} and summary.epochs > 1000
+        assert any(e.source == "gnss" and e.state == "alarm" for e in capture.alarms)
 
         with sync_playwright() as p:
             # launch() runs Chromium on a fresh temporary profile (a new --user-data-dir)
@@ -114,7 +128,7 @@ def test_web_viewer_shows_the_replay_in_chromium(tmp_path):
                 assert [t for t, _, _ in held.texts["alarms"]] == [e.t_us * 1000 for e in capture.alarms]
 
                 time.sleep(3)  # let SwiftShader draw a few frames of the loaded data
-                png = page.screenshot(path=str(SHOT_DIR / "mavnav_rerun_web.png"))
+                png = page.screenshot(path=str(SHOT_DIR / "mavnav_rerun_pilot.png"))
             finally:
                 browser.close()
     finally:
@@ -124,8 +138,11 @@ def test_web_viewer_shows_the_replay_in_chromium(tmp_path):
     rgb = np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
     assert rgb.shape[:2] == (1000, 1600)
     assert rgb.std() > 10, "blank screenshot"
-    # the series are drawn: each sensor's colour covers many pixels (lines, points, lanes)
-    for name, colour in (("baro", bp.CHANNEL_COLOURS["baro"]), ("gnss", bp.CHANNEL_COLOURS["gnss"]),
-                         ("rangefinder", bp.CHANNEL_COLOURS["rangefinder"]),
-                         ("nominal lane", bp.STATE_COLOURS["nominal"])):
-        assert colour_pixels(rgb, colour) > 300, f"no {name} series on screen"
+    # the pilot's tab is drawn: the fused line, the sensors' dots, the alarm in the state strip
+    dots = bp.RAW_ALPHA / 255
+    for name, colour, least in (("fused line", bp.FUSED_COLOUR, 1000),
+                                ("baro dots", on_white(bp.CHANNEL_COLOURS["baro"], dots), 200),
+                                ("GNSS dots", on_white(bp.CHANNEL_COLOURS["gnss"], dots), 200),
+                                ("alarm lane", on_white(bp.STATE_COLOURS["alarm"], LANE_OPACITY), 2000),
+                                ("nominal lane", on_white(bp.STATE_COLOURS["nominal"], LANE_OPACITY), 2000)):
+        assert colour_pixels(rgb, colour, tol=25) > least, f"no {name} on screen"

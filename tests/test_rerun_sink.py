@@ -57,18 +57,19 @@ class Recording:
     scalars: dict = field(default_factory=lambda: defaultdict(list))  # entity -> [(t_ns, values)]
     texts: dict = field(default_factory=lambda: defaultdict(list))  # entity -> [(t_ns, text, level)]
     states: dict = field(default_factory=lambda: defaultdict(list))  # entity -> [(t_ns, state)]
+    docs: dict = field(default_factory=lambda: defaultdict(list))  # entity -> [(t_ns, text, media type)]
     static: dict = field(default_factory=lambda: defaultdict(set))  # entity -> component names
     timelines: set = field(default_factory=set)
 
     def sorted(self) -> "Recording":
-        for table in (self.scalars, self.texts, self.states):
+        for table in (self.scalars, self.texts, self.states, self.docs):
             for rows in table.values():
                 rows.sort(key=lambda r: r[0])
         return self
 
     @property
     def data_entities(self) -> set:
-        return set(self.scalars) | set(self.texts) | set(self.states)
+        return set(self.scalars) | set(self.texts) | set(self.states) | set(self.docs)
 
 
 def read_rrd(path) -> Recording:
@@ -95,6 +96,10 @@ def read_rrd(path) -> Recording:
         if "StateChange:state" in names:
             for t, s in zip(times, batch.column("StateChange:state").to_pylist()):
                 out.states[entity].append((t, s[0]))
+        if "TextDocument:text" in names:
+            kinds = batch.column("TextDocument:media_type").to_pylist()
+            for t, x, m in zip(times, batch.column("TextDocument:text").to_pylist(), kinds):
+                out.docs[entity].append((t, x[0], m[0]))
     return out.sorted()
 
 
@@ -119,23 +124,59 @@ class Capture(Sink):
     name = "capture"
 
     def __init__(self):
-        self.samples, self.epochs, self.alarms = [], [], []
+        self.samples, self.epochs, self.alarms, self.order = [], [], [], []
 
     def sample(self, s):
         self.samples.append(s)
+        self.order.append(s)
 
     def epoch(self, r):
         self.epochs.append(r)
+        self.order.append(r)
 
     def alarm(self, e):
         self.alarms.append(e)
+
+
+RAW = {BaroHeight: ("baro", "baro_ins", None, "height_ref_m"), GnssHeight: ("gnss", "gnss", 0, "height_ref_m"),
+       RangeHeight: ("rangefinder", "rangefinder", 1, "height_agl_m")}
+
+
+def raw_split(order) -> dict:
+    """Where each raw height (boot 0) belongs, written out from the contract: judged at the first
+    epoch after it in the stream whose time is not before its own; refused (heights/rejected/...)
+    when its source is in alarm there, or usable with no row of its sensor in its channel (NaN)."""
+    exp = defaultdict(list)
+    pending = []
+    for item in order:
+        if type(item) in RAW:
+            pending.append(item)
+        elif isinstance(item, EpochReport):
+            later = []
+            for s in pending:
+                if s.t_us > item.t_us:
+                    later.append(s)
+                    continue
+                sensor, source, ch, attr = RAW[type(s)]
+                state = item.sources[source].state
+                used = state != "alarm"
+                if ch is not None and state in ("nominal", "caution") and math.isnan(item.channels[ch].norm_innov_aux):
+                    used = False
+                if s.boot == 0:
+                    exp[f"heights/{'raw' if used else 'rejected'}/{sensor}"].append((s.t_us * 1000, (getattr(s, attr),)))
+            pending = later
+    for s in pending:  # never judged: shown as used
+        sensor, _, _, attr = RAW[type(s)]
+        if s.boot == 0:
+            exp[f"heights/raw/{sensor}"].append((s.t_us * 1000, (getattr(s, attr),)))
+    return exp
 
 
 def fin(x: float) -> float:
     return x if math.isfinite(x) else NAN
 
 
-def expected_scalars(epochs, samples, ns=lambda r: r.t_us * 1000) -> dict:
+def expected_scalars(epochs, samples, ns=lambda r: r.t_us * 1000, order=None) -> dict:
     """Rows the viewer should hold; non-finite values are NaN, invalid pairs NaN."""
     exp = defaultdict(list)
     for r in epochs:
@@ -157,13 +198,12 @@ def expected_scalars(epochs, samples, ns=lambda r: r.t_us * 1000) -> dict:
                 exp[f"integrity/window/{src}"].append((t, w))
         exp["integrity/vpl"].append((t, (fin(r.vpl_m),)))
         exp["integrity/alert_limit"].append((t, (r.alert_limit_m,)))
-    raw = {BaroHeight: ("heights/raw/baro", "height_ref_m"), GnssHeight: ("heights/raw/gnss", "height_ref_m"),
-           RangeHeight: ("heights/raw/rangefinder", "height_agl_m"),
-           AutopilotHeight: ("heights/autopilot", "height_ref_m")}
     for s in samples:
-        if type(s) in raw and s.boot == 0:
-            entity, attr = raw[type(s)]
-            exp[entity].append((s.t_us * 1000, (getattr(s, attr),)))
+        if type(s) is AutopilotHeight and s.boot == 0:
+            exp["heights/autopilot"].append((s.t_us * 1000, (s.height_ref_m,)))
+    if order is not None:
+        for entity, rows in raw_split(order).items():
+            exp[entity] = sorted(rows, key=lambda r: r[0])
     return exp
 
 
@@ -204,7 +244,11 @@ def replayed(flight, tmp_path_factory):
 def test_replay_rrd_has_every_entity_with_the_reported_values(replayed):
     capture, rec, summary = replayed
     assert len(capture.epochs) == summary.epochs > 100
-    exp = expected_scalars(capture.epochs, capture.samples)
+    exp = expected_scalars(capture.epochs, capture.samples, order=capture.order)
+    assert exp["heights/raw/gnss"] and exp["heights/raw/baro"] and exp["heights/raw/rangefinder"]
+    # every raw height is on one of the two entities
+    n_gnss = sum(1 for s in capture.samples if isinstance(s, GnssHeight))
+    assert len(rec.scalars["heights/raw/gnss"]) + len(rec.scalars.get("heights/rejected/gnss", [])) == n_gnss
     # every channel, pair and source is there
     for ch in CHANNEL_NAMES:
         assert f"heights/channel/{ch}" in rec.scalars and f"integrity/nis/{ch}" in rec.scalars
@@ -360,6 +404,7 @@ def test_live_records_the_same_as_replay_columns(tmp_path, live_batch_s):
         assert same(cols.scalars[entity], live.scalars[entity]), entity
     assert cols.texts == live.texts
     assert cols.states == live.states
+    assert cols.docs == live.docs and len(cols.docs["pilot/readout"]) > 5  # the pilot's readout, rows or columns
 
 
 def test_live_sends_every_quarter_second_of_vehicle_time_and_at_once_after_an_alarm(tmp_path):

@@ -20,9 +20,10 @@ from typing import Callable, List, Optional, Sequence, Tuple
 import click
 from pymavlink import mavutil
 
+from ..config import Config
 from ..errors import ConfigError, InputError
 from ..sinks.base import Sink
-from ..sinks.mavlink_commands import DEFAULT_RATES, parse_rate
+from ..sinks.mavlink_commands import parse_rate
 from ..sinks.mavlink_link import load_signing_key
 from ..sinks.mavlink_out import EmitConfig, MavlinkOutSink
 
@@ -65,10 +66,12 @@ _OPTIONS = [
                       "(quality -1 while in alarm)."),
     click.option("--allow-commands", "allow_commands", is_flag=True,
                  help="Allow mavnav to send MAV_CMD_SET_MESSAGE_INTERVAL (and nothing else) to ask the "
-                      "autopilot for the input rates the time-to-alarm needs."),
+                      "autopilot for the input rates the time-to-alarm needs; the answers (COMMAND_ACK) are "
+                      "said on the console."),
     click.option("--request-rate", "request_rate", multiple=True, metavar="NAME:HZ",
-                 help="A message rate to request with --allow-commands (repeatable; default "
-                      + ", ".join(DEFAULT_RATES) + ")."),
+                 help="A message rate to request with --allow-commands (repeatable). Default: the streams the "
+                      "monitor reads from that autopilot (its IMU, ATTITUDE, SCALED_PRESSURE, GPS_RAW_INT, "
+                      "DISTANCE_SENSOR), at the rates the configuration's time-to-alarm needs (emit.request)."),
     click.option("--signing-key", "signing_key", type=click.Path(dir_okay=False), default=None, metavar="FILE",
                  help="Sign what mavnav sends (MAVLink 2). FILE holds 32 raw bytes, or a passphrase hashed "
                       "with SHA-256 as MAVProxy's `signing setup` does."),
@@ -128,6 +131,8 @@ def make_emit_sinks(
     signing_key: Optional[str] = None,
     signing_link_id: int = 0,
     live_input: Optional[bool] = None,
+    config: Optional[Config] = None,
+    say: Optional[Callable[[str], None]] = None,
     clock: Callable[[], float] = time.monotonic,
     wall_clock: Callable[[], float] = time.time,
 ) -> List[Sink]:
@@ -135,8 +140,11 @@ def make_emit_sinks(
 
     ``live_input``: whether the run has a live input link (``run``: True,
     ``replay``: False); ``--emit input`` is refused when it is False.
-    Misspelt keywords raise ``TypeError`` (no ``**kwargs`` swallowing).
+    ``config``: the run's configuration (the rates its time-to-alarm needs,
+    the command timeout); ``say``: where command results are told (the
+    console). Misspelt keywords raise ``TypeError`` (no ``**kwargs`` swallowing).
     """
+    config = config if config is not None else Config()
     if emit is None:
         stray = [name for name, on in (("--allow-commands", allow_commands), ("--emit-debug", emit_debug),
                                        ("--emit-fusable", emit_fusable), ("--signing-key", signing_key),
@@ -147,7 +155,7 @@ def make_emit_sinks(
     emit = emit.strip()
     if request_rate and not allow_commands:
         raise ConfigError("--request-rate needs --allow-commands")
-    rates = tuple(parse_rate(s) for s in (request_rate or DEFAULT_RATES))
+    rates = tuple(parse_rate(s) for s in request_rate) if request_rate else None
     cfg = EmitConfig(
         sysid=emit_sysid,
         compid=emit_compid,
@@ -157,12 +165,15 @@ def make_emit_sinks(
         fusable=emit_fusable,
         allow_commands=allow_commands,
         message_rates=rates,
+        config=config,
         signing_key=load_signing_key(signing_key) if signing_key else None,
         signing_link_id=signing_link_id,
+        command_timeout_s=config.emit.command_timeout_s,
+        command_attempts=config.emit.command_attempts,
     )
     if emit == INPUT:
         if live_input is False:
             raise ConfigError("--emit input needs a live input link (`run`); use a connection string here")
-        return [MavlinkOutSink(None, cfg, use_input_link=True, clock=clock, wall_clock=wall_clock)]
+        return [MavlinkOutSink(None, cfg, use_input_link=True, clock=clock, wall_clock=wall_clock, say=say)]
     link = open_link(emit, emit_sysid, emit_compid)
-    return [MavlinkOutSink(link, cfg, description=emit, clock=clock, wall_clock=wall_clock)]
+    return [MavlinkOutSink(link, cfg, description=emit, clock=clock, wall_clock=wall_clock, say=say)]

@@ -15,12 +15,13 @@ import click
 
 from ..config import Config, load_config
 from ..errors import MavnavError
+from ..home_frame import home_moved_text
 from ..ingest import LiveSource, open_log
 from ..pipeline import run as run_pipeline
 from ..sim.effects import FaultedSource
 from ..sim.faults import parse_faults
 from ..report import AlarmEvent, RunSummary
-from ..samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceSet
+from ..samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceMoved, ReferenceSet
 from ..sinks.base import Sink
 from ..sinks.csv_sink import CsvSink
 from . import main
@@ -83,6 +84,8 @@ class AlarmPrinter(Sink):
             click.echo(f"[t={s.t_us * 1e-6:9.3f} s boot {s.boot}] input       VEHICLE REBOOTED: its time restarted at "
                        f"{s.t_us * 1e-6:.3f} s after {s.last_t_us * 1e-6:.3f} s of boot {s.boot - 1}; "
                        f"the monitor starts again", err=True)
+        elif ts is ReferenceMoved:
+            click.echo(f"[t={s.t_us * 1e-6:9.3f} s boot {s.boot}] input       {home_moved_text(s)}", err=True)
         elif ts is ReferenceSet:
             value = f"{s.value:.1f} Pa" if s.kind == "baro" else f"{s.value:.2f} m"
             at = f", reference point {s.alt_ref_msl_m:.2f} m MSL" if s.alt_ref_msl_m is not None else ""
@@ -146,7 +149,7 @@ def build_sinks(cfg: Config, csv_path: Optional[str], live: bool, viewer_kw: dic
     if csv_path:
         sinks.append(CsvSink(csv_path))
     sinks += make_viewer_sinks(live=live, **viewer_kw)
-    sinks += make_emit_sinks(live_input=live, **emit_kw)
+    sinks += make_emit_sinks(live_input=live, config=cfg, say=lambda text: click.echo(text, err=True), **emit_kw)
     return sinks
 
 
@@ -188,8 +191,9 @@ def run_cmd(connection: str, config_path, sysid, csv_path, inject, **kw) -> None
     try:
         sinks = build_sinks(cfg, csv_path, True, viewer_kw, emit_kw)
         click.echo(f"mavnav: monitoring {connection} ({cfg.monitor.mode} mode); Ctrl-C to stop", err=True)
+        # the sinks write back on the input link, and take the replies to their commands from it
         summary = run_pipeline(source, cfg, sinks, info={"source": connection, "live": True,
-                                                          "link": getattr(source, "mav", None)},
+                                                          "link": live.mav, "link_tap": live.tap},
                                should_stop=lambda: stop["flag"])
     finally:
         source.close()

@@ -22,6 +22,12 @@ empty, so a backlog is never taken for silence.
 **Reordered datagrams** are put back in MAVLink sequence order by the
 reader (:mod:`.stream_reader`): a gap waits up to :data:`REORDER_S` for its
 late frames, so nothing is refused as out of order downstream.
+
+**Replies for a sink** (:meth:`LiveSource.tap`): a sink that writes back on
+this link (``--emit input``) and sends commands needs the vehicle's answers,
+which only this source reads. A tap receives the monitored vehicle's
+HEARTBEAT and COMMAND_ACK messages as pymavlink message objects, in the
+thread that iterates the source (the pipeline's), as they are parsed.
 """
 
 from __future__ import annotations
@@ -34,9 +40,13 @@ from typing import Callable, Iterator, Optional
 
 from pymavlink import mavutil
 
+from pymavlink.dialects.v20 import ardupilotmega as _dialect
+
 from ..config import IngestConfig
 from ..errors import InputError
+from . import wire
 from .normaliser import WANTED, Normaliser
+from ..samples import Rejected
 from .stats import IngestStats
 from .stream_reader import StreamReader
 from .tlog import fill_message_stats
@@ -46,6 +56,8 @@ RCVBUF_BYTES = 8 << 20  # 8 MiB: ~10 s of a busy 4x link in the kernel
 MAX_BACKLOG_BYTES = 256 << 20
 REORDER_S = 0.1  # a sequence gap waits this long for its late frames (receive time)
 REORDER_FRAMES = 100  # or this many frames behind it (stream_reader.MAX_DISPLACEMENT)
+TAPPED = frozenset((wire.MSG_ID["HEARTBEAT"], wire.MSG_ID["COMMAND_ACK"]))  # handed to taps
+TAP_ONLY = TAPPED - WANTED  # read for the taps alone, never normalised
 
 
 def _enlarge_rcvbuf(conn, nbytes: int = RCVBUF_BYTES) -> Optional[int]:
@@ -109,7 +121,9 @@ class LiveSource:
             self._conn = mavutil.mavlink_connection(device, **kwargs)
         except Exception as exc:  # socket, serial and parsing errors alike
             raise InputError(f"{connection}: cannot open ({exc})") from None
-        self._reader = StreamReader(WANTED, reorder_s=REORDER_S, reorder_frames=REORDER_FRAMES)
+        self._reader = StreamReader(WANTED | TAPPED, reorder_s=REORDER_S, reorder_frames=REORDER_FRAMES)
+        self._taps: list = []
+        self._tap_decoders = {mid: wire.make_decoder(mid) for mid in TAPPED}
         self._norm = Normaliser(self.config, sysid, self.stats, link_name=self._link_name(connection))
         self.stats.format = "live"
         self.rcvbuf_bytes = _enlarge_rcvbuf(self._conn)
@@ -185,11 +199,34 @@ class LiveSource:
                     break
                 time.sleep(self.poll_s)  # a transient socket or serial error: keep listening
 
+    def tap(self, callback: Callable[[object], None]) -> None:
+        """Hand the monitored vehicle's HEARTBEAT and COMMAND_ACK messages to ``callback``
+        (pymavlink message objects), in the iterating thread."""
+        self._taps.append(callback)
+
+    def _to_taps(self, msgid: int, sysid: int, compid: int, payload: bytes) -> None:
+        if sysid != self._norm.sysid:
+            return  # another system's heartbeat or answer: not the vehicle the commands go to
+        try:
+            fields = self._tap_decoders[msgid](payload)
+            cls = _dialect.mavlink_map[msgid]
+            msg = cls(*[fields[n] for n in cls.fieldnames])
+            msg._header = _dialect.MAVLink_header(msgid, srcSystem=sysid, srcComponent=compid)
+        except Exception as exc:  # a CRC-valid but malformed payload
+            self._norm.problem(Rejected(self.clock(), "malformed", f"{wire.msg_name(msgid)}: {exc}"))
+            return
+        for cb in self._taps:
+            cb(msg)
+
     def _handle(self, items) -> None:
         norm = self._norm
         for item in items:
             if type(item) is tuple:
-                norm.feed(*item)
+                msgid = item[1]
+                if msgid not in TAP_ONLY:
+                    norm.feed(*item)
+                if msgid in TAPPED and self._taps:
+                    self._to_taps(*item[1:])
             else:
                 norm.problem(item)
 

@@ -52,6 +52,17 @@ Decisions the issue left open (see also the module docs of :mod:`.clock`,
   at most ``home_wait_s``; after 1 s a :class:`~mavnav.samples.Notice`
   says what they wait for, and with nothing in time the reference is the
   start-up mean.
+* **A home that moves** (``follow_home``): a new home set at arming, or at
+  another altitude, moves the reference point and a
+  :class:`~mavnav.samples.ReferenceMoved` says so; the references stay
+  where they were fixed (the filters must see no step) and the pipeline
+  reports heights above the new point. What moves it: a HOME_POSITION whose
+  altitude changed by more than ``home_move_min_m`` from the previous one;
+  on a link without HOME_POSITION, GLOBAL_POSITION_INT's ``alt -
+  relative_alt`` changed by as much in :data:`HOME_CONFIRM_N` messages in a
+  row. The autopilot's heights above its home (``relative_alt``) are taken
+  above the point the references were fixed at (``alt`` minus its
+  altitude), so they do not jump with it.
 * **Autopilot height.** GLOBAL_POSITION_INT ``alt`` (MSL) minus the GNSS
   reference in MSL, i.e. above the same point as :class:`GnssHeight`;
   LOCAL_POSITION_NED ``-z`` plus the EKF origin altitude (GPS_GLOBAL_ORIGIN)
@@ -91,6 +102,7 @@ from ..samples import (
     RangeHeight,
     Notice,
     Reboot,
+    ReferenceMoved,
     ReferenceSet,
     Rejected,
     SpecificForceUp,
@@ -127,6 +139,7 @@ BEHIND_US = 300_000  # a vehicle time this far behind the clock starts a candida
 CONFIRM_N = 5  # messages on a new time base before it is adopted ...
 CONFIRM_SPAN_US = 1_000_000  # ... spanning this much of its time (or catching up), nothing of the old one between
 CLOCK_STEP_GAP_US = 1_000  # after a step back, the first new time lands this far after the last old one
+HOME_CONFIRM_N = 3  # GLOBAL_POSITION_INT messages in a row that must show a moved home
 
 IMU_RANKING = ("HIGHRES_IMU", "RAW_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3")
 RANGE_RANKING = ("DISTANCE_SENSOR", "RANGEFINDER")
@@ -184,6 +197,10 @@ class Normaliser:
         )
         self._anchor: Optional[tuple] = None  # (origin, alt_msl_m, height kind): the autopilot's reference point
         self._home_pos: Optional[tuple] = None  # (t_us, boot, alt_msl_m) of the first HOME_POSITION
+        # the reference point as it moves with the autopilot's home (alt MSL), and what moved it last
+        self._point_msl: Optional[float] = None
+        self._home_last: dict = {}  # origin ("home", "autopilot_home") -> the last home altitude it gave
+        self._gpi_home_cands: List[float] = []  # a moved GLOBAL_POSITION_INT home, not yet confirmed
         # the autopilot's height above its home / EKF origin, this boot, while the baro reference is open
         self._rel_hist = {"GLOBAL_POSITION_INT": [], "LOCAL_POSITION_NED": []}  # [(t_us, height_m, vel_up_mps)]
         self._wait_said: set = set()
@@ -737,7 +754,46 @@ class Normaliser:
         if self._anchor is not None:
             return
         self._anchor = (origin, alt_msl_m, rel_kind)
+        self._point_msl = alt_msl_m
         self._retry_references()
+
+    def _home_seen(self, origin: str, alt_msl_m: float) -> None:
+        """A home altitude from the autopilot after the reference point was fixed: a move
+        when this source's home changed and is away from the point (see the module docstring)."""
+        if not self.cfg.follow_home or self._anchor is None:
+            return
+        tol = self.cfg.home_move_min_m
+        last = self._home_last.get(origin)
+        self._home_last[origin] = alt_msl_m
+        if last is not None and abs(alt_msl_m - last) <= tol:
+            return  # the same home again
+        if abs(alt_msl_m - self._point_msl) <= tol:
+            return
+        shift = alt_msl_m - self._point_msl
+        self._point_msl = alt_msl_m
+        t_us = self.clock.last_t_us if self.clock.last_t_us is not None else 0
+        self.stats.reference_moves += 1
+        self._emit(ReferenceMoved(t_us=t_us, recv_s=self._last_recv or 0.0, boot=self.clock.boot,
+                                  alt_ref_msl_m=alt_msl_m, shift_m=shift, offset_m=alt_msl_m - self._anchor[1],
+                                  origin=origin))
+
+    def _gpi_home(self, home_msl_m: float) -> None:
+        """GLOBAL_POSITION_INT's home, followed only on a link without HOME_POSITION and only
+        once ``HOME_CONFIRM_N`` messages in a row show the same moved value."""
+        if self._home_pos is not None:
+            return  # HOME_POSITION says where home is
+        last = self._home_last.get("autopilot_home", self._point_msl)
+        tol = self.cfg.home_move_min_m
+        cands = self._gpi_home_cands
+        if last is None or abs(home_msl_m - last) <= tol:
+            cands.clear()
+            return
+        if cands and abs(home_msl_m - cands[0]) > tol:
+            cands.clear()
+        cands.append(home_msl_m)
+        if len(cands) >= HOME_CONFIRM_N:
+            cands.clear()
+            self._home_seen("autopilot_home", home_msl_m)
 
     def _retry_references(self) -> None:
         if self.baro_ref.value is None:
@@ -834,7 +890,11 @@ class Normaliser:
         if self._home_pos is None:
             t_us = self.clock.last_t_us if self.clock.last_t_us is not None else 0
             self._home_pos = (t_us, self.clock.boot, alt_m)
-        self._set_anchor("home", alt_m, "GLOBAL_POSITION_INT")
+        if self._anchor is None:
+            self._home_last["home"] = alt_m
+            self._set_anchor("home", alt_m, "GLOBAL_POSITION_INT")
+        else:
+            self._home_seen("home", alt_m)
 
     def _reference_event(self, kind, value, alt_msl, origin, item) -> None:
         if item:
@@ -933,11 +993,18 @@ class Normaliser:
         # home is known: a position (ArduPilot sends lat = lon = 0 without one) and home set
         # (before arming old ArduPilot reports relative_alt == alt: home at 0)
         if (f["lat"] != 0 or f["lon"] != 0) and abs(f["alt"] - f["relative_alt"]) >= HOME_UNSET_MM:
+            home_m = (f["alt"] - f["relative_alt"]) / 1000.0
+            if self._anchor is not None:
+                # above the point the references are fixed at, whatever home the autopilot has now
+                rel_m = f["alt"] / 1000.0 - self._anchor[1]
             self._note_rel("GLOBAL_POSITION_INT", t_us, rel_m, vel_up)
             if self._anchor is None:
-                self._set_anchor("autopilot_home", (f["alt"] - f["relative_alt"]) / 1000.0, "GLOBAL_POSITION_INT")
-            elif self.baro_ref.value is None and self.baro_ref.held:
-                self._baro_released(*self.baro_ref.retry())
+                self._home_last["autopilot_home"] = home_m
+                self._set_anchor("autopilot_home", home_m, "GLOBAL_POSITION_INT")
+            else:
+                self._gpi_home(home_m)
+                if self.baro_ref.value is None and self.baro_ref.held:
+                    self._baro_released(*self.baro_ref.retry())
         # alt: mm MSL, none without a position (ArduPilot then sends 0 or its uncorrected baro altitude)
         alt_msl = f["alt"] / 1000.0 if f["lat"] != 0 or f["lon"] != 0 else None
         item = (t_us, recv_s, self.clock.boot, alt_msl, rel_m, vel_up)

@@ -19,7 +19,10 @@ order, until it is known, then released together with one
   what is held.
 
 The reference is fixed once per source and kept across reboots (it is a
-place, not a state of the vehicle).
+place, not a state of the vehicle). A home the autopilot moves later (a new
+home set at arming) does not re-fix it: the filters would see every height
+step at once; the normaliser says the move (``ReferenceMoved``) and the
+pipeline reports heights above the new home (:mod:`mavnav.home_frame`).
 """
 
 from __future__ import annotations

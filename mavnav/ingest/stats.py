@@ -57,6 +57,7 @@ class IngestStats:
     gaps: List[GapRecord] = field(default_factory=list)
     reboots: int = 0
     clock_steps: int = 0  # the vehicle clock stepped back (less than a reboot) and was kept on one timeline
+    reference_moves: int = 0  # the autopilot's home moved and the reported heights followed it
     duration_s: float = 0.0
     vehicle: Optional[VehicleInfo] = None
     imu_source: Optional[str] = None

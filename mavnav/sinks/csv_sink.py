@@ -13,7 +13,8 @@ microsecond resolution, heights with 0.1 mm.
 happens: ``reboot`` (at the new boot's first vehicle time), ``link lost``
 (written and flushed when the receive clock passes the timeout, while the
 link is down, at the vehicle time of the last epoch), ``link recovered``,
-``clock step``. Their other columns are empty: a reader of epochs skips
+``clock step``, ``home moved`` (the autopilot's home moved: the heights of
+the rows after it are above the new home). Their other columns are empty: a reader of epochs skips
 rows whose ``event`` is set.
 
 Rows reach the file as the run goes, not only at close: on a live link
@@ -29,7 +30,8 @@ from pathlib import Path
 from typing import Optional
 
 from ..report import EpochReport, RunSummary
-from ..samples import LinkLost, LinkRecovered, Notice, Reboot
+from ..home_frame import home_moved_text
+from ..samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceMoved
 from .base import Sink
 
 COLUMNS = (
@@ -116,6 +118,8 @@ class CsvSink(Sink):
             self._last = (s.t_us, s.boot)
         elif ts is Notice and s.kind == "clock_step":
             self._event(t_us, boot, f"clock step: {s.text}")
+        elif ts is ReferenceMoved:
+            self._event(s.t_us, s.boot, f"home moved: {home_moved_text(s)}")
 
     def _event(self, t_us, boot, text: str) -> None:
         self._w.writerow(event_row(t_us, boot, text))

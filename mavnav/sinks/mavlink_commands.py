@@ -14,6 +14,15 @@ The target is the first autopilot heard (a HEARTBEAT whose autopilot is not
 MAV_AUTOPILOT_INVALID and whose type is not a GCS or an onboard controller);
 nothing is sent before one is heard. Timing is on the wall clock (the
 vehicle answers in real time), passed in by the caller.
+
+What is asked for (:func:`needed_rates`), unless the user names the rates:
+the streams the monitor reads on that autopilot (the IMU it uses: RAW_IMU on
+ArduPilot, which fills it in milli-g, HIGHRES_IMU elsewhere, or the
+configured ``ingest.imu_source``; ATTITUDE; the configured barometer's
+SCALED_PRESSURE; GPS_RAW_INT; DISTANCE_SENSOR or the configured
+``ingest.range_source``), each at the larger of its ``emit.request`` rate and
+``emit.request.tta_margin`` times the rate the time-to-alarm needs
+(:func:`mavnav.audit.required_rates_hz`).
 """
 
 from __future__ import annotations
@@ -21,27 +30,17 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 from pymavlink.dialects.v20 import ardupilotmega as dialect
 from pymavlink.dialects.v20 import common as mavlink2
 
+from ..config import Config
 from ..errors import ConfigError
 
 log = logging.getLogger("mavnav.sinks.mavlink_out")
 
 MAV_CMD_SET_MESSAGE_INTERVAL = mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL  # 511
-
-# The inputs the monitor uses and rates that support a 1 s time-to-alarm:
-# IMU and attitude at the filter rate, baro and rangefinder well above the
-# alarm's bandwidth, GNSS at what receivers give.
-DEFAULT_RATES: Tuple[str, ...] = (
-    "HIGHRES_IMU:50",
-    "ATTITUDE:50",
-    "SCALED_PRESSURE:20",
-    "GPS_RAW_INT:5",
-    "DISTANCE_SENSOR:20",
-)
 
 _IDS: Dict[str, int] = {cls.msgname: mid for mid, cls in dialect.mavlink_map.items()}
 
@@ -77,6 +76,40 @@ def parse_rate(spec: str) -> RateRequest:
     return RateRequest(name, _IDS[name], rate)
 
 
+_BARO_MESSAGES = {1: "SCALED_PRESSURE", 2: "SCALED_PRESSURE2", 3: "SCALED_PRESSURE3"}
+
+
+def needed_rates(cfg: Config, autopilot: Optional[int]) -> Tuple[RateRequest, ...]:
+    """The streams the monitor reads from this autopilot (MAV_AUTOPILOT), at the rates
+    ``cfg`` needs (see the module docstring)."""
+    from ..audit import required_rates_hz  # the monitor's rule, kept in one place
+
+    need = required_rates_hz(cfg)
+    req = cfg.emit.request
+    ing = cfg.ingest
+    if ing.imu_source != "auto":
+        imu = ing.imu_source
+    else:
+        imu = "RAW_IMU" if autopilot == mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA else "HIGHRES_IMU"
+    rng = ing.range_source if ing.range_source != "auto" else "DISTANCE_SENSOR"
+
+    def rate(floor_hz: float, kind: Optional[str]) -> float:
+        return max(floor_hz, req.tta_margin * need[kind]) if kind else floor_hz
+
+    return (
+        RateRequest(imu, _IDS[imu], rate(req.imu_rate_hz, "imu")),
+        RateRequest("ATTITUDE", _IDS["ATTITUDE"], rate(req.attitude_rate_hz, "imu")),
+        RateRequest(_BARO_MESSAGES[ing.baro_instance], _IDS[_BARO_MESSAGES[ing.baro_instance]],
+                    rate(req.baro_rate_hz, "baro")),
+        RateRequest("GPS_RAW_INT", _IDS["GPS_RAW_INT"], rate(req.gnss_rate_hz, "gnss")),
+        RateRequest(rng, _IDS[rng], rate(req.range_rate_hz, "rangefinder")),
+    )
+
+
+#: What to ask for: a fixed list, or a plan made from the target's HEARTBEAT.
+Requests = Union[Sequence[RateRequest], Callable[[object], Sequence[RateRequest]]]
+
+
 def is_autopilot_heartbeat(msg) -> bool:
     return (
         msg.get_type() == "HEARTBEAT"
@@ -91,19 +124,27 @@ class IntervalRequester:
     :meth:`poll` returns the COMMAND_LONG to send now (or None);
     :meth:`on_message` takes what the link receives. ``results`` maps each
     message name to ``accepted``, ``refused: <RESULT>`` or ``no answer``.
+    ``requests`` is a list, or a function of the target's HEARTBEAT that
+    makes it once the target is heard (:func:`needed_rates` depends on the
+    autopilot). ``on_result(request, result)`` is called at each verdict
+    (the sink tells a person; this class logs at DEBUG only).
     """
 
     def __init__(
         self,
-        requests: Sequence[RateRequest],
+        requests: Requests,
         own: Tuple[int, int],
         *,
         timeout_s: float = 1.0,
         attempts: int = 3,
+        on_result: Optional[Callable[[RateRequest, str], None]] = None,
     ):
         if attempts < 1:
             raise ValueError("attempts must be >= 1")
-        self._queue: List[RateRequest] = list(requests)
+        self._plan = requests if callable(requests) else None
+        self.requests: List[RateRequest] = [] if self._plan is not None else list(requests)
+        self._queue: List[RateRequest] = list(self.requests)
+        self.on_result = on_result
         self.own = own
         self.timeout_s = timeout_s
         self.attempts = attempts
@@ -116,14 +157,18 @@ class IntervalRequester:
 
     @property
     def done(self) -> bool:
-        return self._current is None and not self._queue
+        planned = self._plan is None or self.target is not None
+        return planned and self._current is None and not self._queue
 
     def on_message(self, msg, now: float) -> None:
         mtype = msg.get_type()
         if mtype == "HEARTBEAT":
             if self.target is None and is_autopilot_heartbeat(msg):
                 self.target = (msg.get_srcSystem(), msg.get_srcComponent())
-                log.info("MAVLink output: commands go to the autopilot %d/%d", *self.target)
+                if self._plan is not None:
+                    self.requests = list(self._plan(msg))
+                    self._queue = list(self.requests)
+                log.debug("MAVLink output: commands go to the autopilot %d/%d", *self.target)
         elif mtype == "COMMAND_ACK":
             self._on_ack(msg, now)
 
@@ -140,17 +185,19 @@ class IntervalRequester:
         result = _RESULT.get(msg.result, str(msg.result))
         if msg.result == mavlink2.MAV_RESULT_ACCEPTED:
             self._finish(req, "accepted")
-            log.info("MAVLink output: %s at %g Hz accepted", req.name, req.rate_hz)
+            log.debug("MAVLink output: %s at %g Hz accepted", req.name, req.rate_hz)
         elif msg.result == mavlink2.MAV_RESULT_IN_PROGRESS:
             self._sent_at = now
         elif msg.result == mavlink2.MAV_RESULT_TEMPORARILY_REJECTED and self._attempt < self.attempts:
             self._sent_at = -math.inf  # ask again at the next poll
         else:
             self._finish(req, f"refused: {result}")
-            log.warning("MAVLink output: the vehicle refused %s at %g Hz (%s)", req.name, req.rate_hz, result)
+            log.debug("MAVLink output: the vehicle refused %s at %g Hz (%s)", req.name, req.rate_hz, result)
 
     def _finish(self, req: RateRequest, result: str) -> None:
         self.results[req.name] = result
+        if self.on_result is not None:
+            self.on_result(req, result)
         self._current = None
         self._attempt = 0
         self._sent_at = -math.inf
@@ -170,7 +217,7 @@ class IntervalRequester:
         req = self._current
         if self._attempt >= self.attempts:
             self._finish(req, "no answer")
-            log.warning("MAVLink output: no COMMAND_ACK for %s at %g Hz after %d attempts",
+            log.debug("MAVLink output: no COMMAND_ACK for %s at %g Hz after %d attempts",
                         req.name, req.rate_hz, self.attempts)
             return self.poll(now)
         self._attempt += 1

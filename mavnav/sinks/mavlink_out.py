@@ -17,7 +17,8 @@ sends the same frames as the live run did):
 * ALTITUDE at ``altitude_rate_hz`` (epochs decimated on a vehicle-time grid):
   ``time_usec`` the epoch's vehicle time; ``altitude_local`` and
   ``altitude_relative`` the fused height above the reference (normally home);
-  ``altitude_amsl`` that plus the reference's altitude MSL (NaN if unknown);
+  ``altitude_amsl`` that plus the reference's altitude MSL (NaN if unknown;
+  after a :class:`~mavnav.samples.ReferenceMoved`, the new home's);
   ``altitude_monotonic`` the raw barometric height above the reference (the
   field's recommended "uncorrected barometric altitude"); ``altitude_terrain``
   the rangefinder channel's height and ``bottom_clearance`` the latest
@@ -29,6 +30,11 @@ sends the same frames as the live run did):
   characters; a source still starting up is INFO, not ERROR. A live link's
   loss and recovery are said as they happen (receive clock): ``mavnav input
   LINK LOST: ...`` (ERROR) and ``... LINK RECOVERED after N s`` (NOTICE).
+  Every vehicle reboot the input detects is said at once, ``mavnav input
+  VEHICLE REBOOTED: ...`` (NOTICE, after the old boot's pending texts), a
+  moved home (``mavnav input HOME MOVED ...``, NOTICE), and so
+  are the input's notices (a clock step at NOTICE; the vehicle chosen, the
+  systems ignored and what the source waits for at INFO).
 * With ``debug_values``: NAMED_VALUE_FLOAT at the ALTITUDE rate
   (:data:`DEBUG_NAMES`).
 * With ``fusable``: ODOMETRY (331) at the ALTITUDE rate, for an autopilot
@@ -46,7 +52,10 @@ sends the same frames as the live run did):
   alarm or the height is not finite. ``reset_counter`` counts reboots and
   reference changes (the origin jumps).
 * With ``allow_commands``: MAV_CMD_SET_MESSAGE_INTERVAL only
-  (:mod:`.mavlink_commands`).
+  (:mod:`.mavlink_commands`), for the streams and rates the configuration's
+  time-to-alarm needs (or the ``message_rates`` given); each COMMAND_ACK
+  verdict (accepted, refused with its result, no answer) and a last word
+  on what was not granted go to ``say`` (the CLI's console) and the log.
 
 The link: a pymavlink connection the CLI opened (``--emit CONNECTION``), or
 ``link=None, use_input_link=True`` (``--emit input``): then ``start(info)``
@@ -70,13 +79,17 @@ from typing import Callable, Optional, Tuple
 
 from pymavlink.dialects.v20 import common as mavlink2
 
+from ..config import Config
 from ..errors import ConfigError, InputError
+from ..home_frame import home_moved_text
 from ..report import CHANNEL_NAMES, PAIR_NAMES, AlarmEvent, EpochReport, RunSummary
-from ..samples import LinkLost, LinkRecovered, Reboot, ReferenceSet
+from ..samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceMoved, ReferenceSet
 from .base import Sink
-from .mavlink_commands import DEFAULT_RATES, IntervalRequester, RateRequest, parse_rate
+from .mavlink_commands import IntervalRequester, RateRequest, needed_rates
 from .mavlink_link import LinkWriter
-from .mavlink_statustext import StartupWatch, StatusTextLimiter, format_text, severity, split_text
+from .mavlink_statustext import (
+    StartupWatch, StatusTextLimiter, format_text, input_text, severity, split_text,
+)
 
 log = logging.getLogger("mavnav.sinks.mavlink_out")
 
@@ -108,10 +121,6 @@ _SYSTEM_STATUS = {
 _QUALITY = {"nominal": 100, "caution": 50, "unavailable": 50, "alarm": -1}
 
 
-def _default_rates() -> Tuple[RateRequest, ...]:
-    return tuple(parse_rate(s) for s in DEFAULT_RATES)
-
-
 @dataclass(frozen=True)
 class EmitConfig:
     """What the MAVLink output sends and as whom. Bad values are refused by name."""
@@ -123,7 +132,9 @@ class EmitConfig:
     debug_values: bool = False
     fusable: bool = False
     allow_commands: bool = False
-    message_rates: Tuple[RateRequest, ...] = field(default_factory=_default_rates)
+    # None: the streams the monitor reads, at the rates ``config`` needs (mavlink_commands.needed_rates)
+    message_rates: Optional[Tuple[RateRequest, ...]] = None
+    config: Config = field(default_factory=Config)
     signing_key: Optional[bytes] = None
     signing_link_id: int = 0
     command_timeout_s: float = 1.0
@@ -182,7 +193,9 @@ class MavlinkOutSink(Sink):
         close_link: bool = True,
         clock: Callable[[], float] = time.monotonic,
         wall_clock: Callable[[], float] = time.time,
+        say: Optional[Callable[[str], None]] = None,
     ):
+        """``say``: where the command results are told to a person (the console)."""
         if (link is None) != use_input_link:
             raise ValueError("give a link, or use_input_link=True (not both)")
         self.cfg = config if config is not None else EmitConfig()
@@ -206,15 +219,18 @@ class MavlinkOutSink(Sink):
         self._text_id = 0  # id of the last chunked STATUSTEXT (1..65535; 0 = a single message)
         self._hb = _Ticker(HEARTBEAT_PERIOD_US)
         self._alt = _Ticker(int(round(1e6 / cfg.altitude_rate_hz)))
+        self.say = say
         self.requester: Optional[IntervalRequester] = None
-        if cfg.allow_commands and cfg.message_rates:
+        if cfg.allow_commands and (cfg.message_rates is None or len(cfg.message_rates) > 0):
+            plan = cfg.message_rates if cfg.message_rates is not None else self._plan_rates
             self.requester = IntervalRequester(
-                cfg.message_rates, (cfg.sysid, cfg.compid),
-                timeout_s=cfg.command_timeout_s, attempts=cfg.command_attempts,
+                plan, (cfg.sysid, cfg.compid),
+                timeout_s=cfg.command_timeout_s, attempts=cfg.command_attempts, on_result=self._on_result,
             )
         self._read_link = False  # whether this sink reads replies from its own link
         self._next_poll = -INF
         self._alt_ref_msl: dict = {}  # ReferenceSet.kind -> alt_ref_msl_m (None if unknown)
+        self._point_msl: Optional[float] = None  # the home the heights are above, once it moved
         self._boot: Optional[int] = None
         self._reset_counter = 0
         self._commands_reported = False
@@ -249,8 +265,17 @@ class MavlinkOutSink(Sink):
             self._alt_ref_msl[s.kind] = s.alt_ref_msl_m
             if prev != "unset":
                 self._reset_counter += 1
+        elif ts is ReferenceMoved:
+            self._point_msl = s.alt_ref_msl_m  # the heights reported are above it from now on
+            self._reset_counter += 1
+            self._send_statustext(mavlink2.MAV_SEVERITY_NOTICE, f"mavnav input {home_moved_text(s)}")
         elif ts is Reboot:
             self._alt_ref_msl.clear()
+            self._point_msl = None
+            self._send_texts(self.limiter.flush())  # the old boot's pending changes first
+            self._send_statustext(*input_text(s))
+        elif ts is Notice:
+            self._send_statustext(*input_text(s))
         elif ts is LinkLost:
             # said at once, from the receive clock: the monitor's own input
             # transition waits for the next epoch, i.e. for the link to return
@@ -291,7 +316,7 @@ class MavlinkOutSink(Sink):
         try:
             if self.writer is not None:
                 self._send_texts(self.limiter.flush())
-                if self.requester is not None:
+                if self.requester is not None and not self._commands_reported:
                     self._report_commands()
                 log.info("MAVLink output %s: %s; %d sends failed", self.description,
                          ", ".join(f"{k} {v}" for k, v in sorted(self.counts.items())) or "nothing sent",
@@ -337,18 +362,39 @@ class MavlinkOutSink(Sink):
         if msg is not None:
             self._send(msg)
 
+    def _tell(self, level: int, text: str) -> None:
+        """To the console when there is one (``say``), else to the log at ``level``."""
+        if self.say is not None:
+            self.say(f"mavnav: {text}")
+            level = logging.DEBUG
+        log.log(level, "MAVLink output: %s", text)
+
+    def _plan_rates(self, heartbeat) -> Tuple[RateRequest, ...]:
+        rates = needed_rates(self.cfg.config, heartbeat.autopilot)
+        self._tell(logging.INFO, f"asking the autopilot {heartbeat.get_srcSystem()}/{heartbeat.get_srcComponent()} "
+                                 "for the input rates the time-to-alarm needs: "
+                                 + ", ".join(f"{r.name} {r.rate_hz:g} Hz" for r in rates))
+        return rates
+
+    def _on_result(self, req: RateRequest, result: str) -> None:
+        self._tell(logging.INFO if result == "accepted" else logging.WARNING,
+                   f"SET_MESSAGE_INTERVAL {req.name} {req.rate_hz:g} Hz: {result}")
+
     def _report_commands(self) -> None:
         self._commands_reported = True
         req = self.requester
         results = dict(req.results)
-        for r in self.cfg.message_rates:
-            results.setdefault(r.name, "not sent (no autopilot heard)" if req.target is None else "no answer yet")
+        if req.target is None:
+            self._tell(logging.WARNING, "no autopilot heard: no message rate was requested (not sent)")
+            return
+        for r in req.requests:
+            results.setdefault(r.name, "no answer yet")
         bad = {k: v for k, v in results.items() if v != "accepted"}
         if bad:
-            log.warning("MAVLink output: message rates not granted: %s",
-                        "; ".join(f"{k} {v}" for k, v in bad.items()))
+            self._tell(logging.WARNING, "message rates not granted: " + "; ".join(f"{k} {v}" for k, v in bad.items())
+                       + " (the input may be too slow for the time-to-alarm: see the input source's state)")
         else:
-            log.info("MAVLink output: every requested message rate was accepted")
+            self._tell(logging.INFO, "every requested message rate was accepted")
 
     # ------------------------------------------------------------------ frames
 
@@ -380,6 +426,8 @@ class MavlinkOutSink(Sink):
             mavlink2.MAV_TYPE_ONBOARD_CONTROLLER, mavlink2.MAV_AUTOPILOT_INVALID, 0, 0, status, 3)
 
     def _alt_ref(self) -> float:
+        if self._point_msl is not None:
+            return self._point_msl
         for kind in ("gnss", "baro"):
             v = self._alt_ref_msl.get(kind)
             if v is not None:

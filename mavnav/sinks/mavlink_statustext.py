@@ -23,6 +23,12 @@ Start-up is not an error: a source that has not yet been in use in this boot
 *starting* (:class:`StartupWatch`), e.g. ``mavnav rangefinder STARTING: no
 recent data`` at INFO; once it has been in use, losing it is an ERROR.
 
+What the input says besides state changes goes out as ``mavnav input ...``
+(:func:`input_text`): a vehicle reboot (``VEHICLE REBOOTED: ...``) and a step
+of the vehicle clock at NOTICE, the other notices (the vehicle monitored, the
+systems ignored, what the source waits for) at INFO. None of them is an
+error: the monitor restarts or goes on by itself.
+
 The rate limit is per source, on vehicle time: a source's first change is
 sent at once; further changes of the same source within
 ``min_interval_us`` of its last STATUSTEXT are coalesced into one pending
@@ -41,6 +47,7 @@ from typing import Dict, List, Optional, Set, Tuple
 from pymavlink.dialects.v20 import common as mavlink2
 
 from ..report import AlarmEvent, EpochReport
+from ..samples import Notice, Reboot
 
 MAX_CHARS = 50
 PREFIX = "mavnav"
@@ -53,6 +60,8 @@ SEVERITY_FOR_STATE = {
     "nominal": mavlink2.MAV_SEVERITY_NOTICE,
 }
 SEVERITY_STARTING = mavlink2.MAV_SEVERITY_INFO
+SEVERITY_REBOOT = mavlink2.MAV_SEVERITY_NOTICE
+SEVERITY_NOTICE = {"clock_step": mavlink2.MAV_SEVERITY_NOTICE}  # Notice.kind -> severity; INFO otherwise
 
 
 def severity(event: AlarmEvent, starting: bool = False) -> int:
@@ -75,6 +84,18 @@ def format_text(event: AlarmEvent, coalesced: int = 0, starting: bool = False) -
     reason = _ascii(event.reason.strip())
     text = f"{head}: {reason}" if reason else head
     return " ".join(_ascii(text).split())
+
+
+def input_text(s) -> Optional[Tuple[int, str]]:
+    """``(severity, text)`` for what the input says (a :class:`~mavnav.samples.Reboot`
+    or :class:`~mavnav.samples.Notice`), None for anything else."""
+    if isinstance(s, Reboot):
+        return SEVERITY_REBOOT, (f"{PREFIX} input VEHICLE REBOOTED: its time restarted at {s.t_us * 1e-6:.1f} s "
+                                 f"after {s.last_t_us * 1e-6:.1f} s (boot {s.boot}); the monitor starts again")
+    if isinstance(s, Notice):
+        sev = SEVERITY_NOTICE.get(s.kind, mavlink2.MAV_SEVERITY_INFO)
+        return sev, " ".join(_ascii(f"{PREFIX} input {s.text}").split())
+    return None
 
 
 def split_text(text: str, size: int = MAX_CHARS) -> List[str]:

@@ -23,6 +23,15 @@ behind; ``live_batch_s=0`` logs every row as it comes (``log`` with
 ``set_time``), at about ten times the cost (2.5 ms against 0.2-0.5 ms per
 epoch here). The recording holds the same values every way.
 
+Raw heights wait for the epoch that judged them (the first epoch at or
+after their vehicle time, in stream order): a sample the monitor used goes to
+``heights/raw/<sensor>``, one it refused (its source excluded, in alarm, or
+the gate keeping it out of its channel: the channel's row for that sensor is
+NaN at that epoch) to ``heights/rejected/<sensor>``, which the pilot's plot
+does not show (:func:`raw_used`). The pilot's readout (``pilot/readout``) is
+written every ``readout_interval_s`` of vehicle time and at every change of
+a source's or the overall state (:func:`readout_markdown`).
+
 Outputs. Each target (an ``.rrd`` file, a viewer) has its own recording
 stream with the same recording id, so that a viewer that goes away can be
 let go of without touching the file.
@@ -49,7 +58,8 @@ from typing import Callable, Optional, Sequence
 import numpy as np
 import rerun as rr
 
-from ..report import SOURCES, AlarmEvent, EpochReport, RunSummary
+from ..home_frame import home_moved_text
+from ..report import CHANNEL_NAMES, SOURCES, AlarmEvent, EpochReport, RunSummary
 from ..samples import (
     AutopilotHeight,
     BaroHeight,
@@ -60,6 +70,7 @@ from ..samples import (
     Notice,
     RangeHeight,
     Reboot,
+    ReferenceMoved,
     ReferenceSet,
     Rejected,
 )
@@ -70,6 +81,7 @@ log = logging.getLogger("mavnav.sinks.rerun")
 
 NS_PER_US = 1000
 NS_PER_S = 1_000_000_000
+READOUT_INTERVAL_S = 0.2  # the pilot's readout, at most this long behind the epochs (vehicle time)
 
 
 # --------------------------------------------------------------------------
@@ -185,6 +197,10 @@ class _RowWriter:
         self._at(ns)
         self.rec.log(entity, rr.StateChange(state=[state]))
 
+    def document(self, entity: str, ns: int, markdown: str) -> None:
+        self._at(ns)
+        self.rec.log(entity, rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN))
+
     def pending(self) -> int:
         return 0
 
@@ -210,6 +226,7 @@ class _ColumnWriter:
         self._scalars: dict[str, _Column] = {}
         self._texts: dict[str, _Column] = {}
         self._states: dict[str, _Column] = {}
+        self._docs: dict[str, _Column] = {}
         self._n = 0
         self._since_ns: Optional[int] = None  # vehicle time of the oldest buffered row
 
@@ -236,6 +253,9 @@ class _ColumnWriter:
     def state(self, entity: str, ns: int, state: str) -> None:
         self._add(self._states, entity, ns, state)
 
+    def document(self, entity: str, ns: int, markdown: str) -> None:
+        self._add(self._docs, entity, ns, markdown)
+
     def pending(self) -> int:
         return self._n
 
@@ -244,8 +264,8 @@ class _ColumnWriter:
         return [rr.TimeColumn(bp.TIMELINE, duration=np.asarray(col.times, dtype=np.int64).astype("timedelta64[ns]"))]
 
     def flush(self) -> None:
-        scalars, texts, states = self._scalars, self._texts, self._states
-        self._scalars, self._texts, self._states, self._n, self._since_ns = {}, {}, {}, 0, None
+        scalars, texts, states, docs = self._scalars, self._texts, self._states, self._docs
+        self._scalars, self._texts, self._states, self._docs, self._n, self._since_ns = {}, {}, {}, {}, 0, None
         for entity, col in scalars.items():
             values = np.asarray(col.values, dtype=np.float64)
             self.rec.send_columns(entity, indexes=self._index(col), columns=rr.Scalars.columns(scalars=values))
@@ -259,6 +279,9 @@ class _ColumnWriter:
             )
         for entity, col in states.items():
             self.rec.send_columns(entity, indexes=self._index(col), columns=rr.StateChange.columns(state=col.values))
+        for entity, col in docs.items():
+            self.rec.send_columns(entity, indexes=self._index(col), columns=rr.TextDocument.columns(
+                text=col.values, media_type=[str(rr.MediaType.MARKDOWN)] * len(col.values)))
 
 
 # --------------------------------------------------------------------------
@@ -346,10 +369,12 @@ class RerunSink(Sink):
         live_batch_s: float = 0.25,
         check_interval_s: float = 1.0,
         flush_timeout_s: float = 10.0,
+        readout_interval_s: float = READOUT_INTERVAL_S,
         on_close: Sequence[Callable[[], None]] = (),
     ):
         """``live_batch_s``: live runs send every this many seconds of vehicle
-        time (0: every row at once); ``batch_rows``: most rows buffered."""
+        time (0: every row at once); ``batch_rows``: most rows buffered;
+        ``readout_interval_s``: the pilot's readout between state changes."""
         self.outputs = list(outputs)
         self.live = live
         self.window_s = window_s
@@ -372,6 +397,10 @@ class RerunSink(Sink):
         self._rejected: dict[str, int] = {}
         self._next_check = 0.0
         self._closed = False
+        self.readout_every_ns = int(readout_interval_s * NS_PER_S)
+        self._readout_ns: Optional[int] = None  # vehicle time of the last readout
+        self._readout_states: Optional[tuple] = None  # the states it showed
+        self._raw_pending: list[tuple[int, int, int, str, float]] = []  # (boot, t_us, ns, sensor, height)
 
     @property
     def targets(self) -> list["ViewerTarget"]:
@@ -445,6 +474,7 @@ class RerunSink(Sink):
             return
         w = self.writer
         if isinstance(s, Reboot):
+            self._judge_raw(None)  # the old boot's epochs are over: what they did not judge is shown as is
             offset = self.clock.reboot(s.boot, s.t_us, s.last_t_us)
             ns = self.clock.ns(s.boot, s.t_us)
             w.text(
@@ -482,6 +512,9 @@ class RerunSink(Sink):
             w.scalars(f"input/gaps/{kind}", ns, (float(s.length_s),))
             w.text("input/events", ns, f"gap: no {s.kind} for {s.length_s:.2f} s", "WARN", bp.STATE_COLOURS["caution"])
             return
+        if isinstance(s, ReferenceMoved):
+            w.text("input/events", ns, home_moved_text(s), "WARN", bp.STATE_COLOURS["caution"])
+            return
         if isinstance(s, ReferenceSet):
             w.text(
                 "input/events",
@@ -495,18 +528,39 @@ class RerunSink(Sink):
         if kind is not None:
             self._rates.observe(kind, ns, self._emit_rate)
         if isinstance(s, BaroHeight):
-            entity = "heights/raw/baro"
-            if s.instance not in (0, 1):
-                entity = f"heights/raw/baro{int(s.instance)}"
-                self._style(entity, rr.SeriesPoints(colors=[bp.CHANNEL_COLOURS["baro"]], names=[f"baro {s.instance} (raw)"]))
-            w.scalars(entity, ns, (s.height_ref_m,))
+            sensor = "baro" if s.instance in (0, 1) else f"baro{int(s.instance)}"
+            self._raw_pending.append((s.boot, s.t_us, ns, sensor, s.height_ref_m))
         elif isinstance(s, GnssHeight):
-            w.scalars("heights/raw/gnss", ns, (s.height_ref_m,))
+            self._raw_pending.append((s.boot, s.t_us, ns, "gnss", s.height_ref_m))
         elif isinstance(s, RangeHeight):
-            w.scalars("heights/raw/rangefinder", ns, (s.height_agl_m,))
+            self._raw_pending.append((s.boot, s.t_us, ns, "rangefinder", s.height_agl_m))
         elif isinstance(s, AutopilotHeight):
             w.scalars("heights/autopilot", ns, (s.height_ref_m,))
         self._check_targets()
+
+    def _judge_raw(self, report: Optional[EpochReport]) -> None:
+        """Write the raw heights ``report`` judged (all pending with None: shown as used)."""
+        keep = []
+        for item in self._raw_pending:
+            boot, t_us, ns, sensor, h = item
+            if report is not None and boot == report.boot and t_us > report.t_us:
+                keep.append(item)  # a later epoch takes it
+                continue
+            used = True if report is None or boot != report.boot else raw_used(sensor, report)
+            entity = bp.raw_entity(sensor, used)
+            if sensor not in bp.CHANNEL_NAMES:  # another baro instance
+                word = f"{sensor} (raw)" if used else f"{sensor} (raw, not used)"
+                self._style(entity, rr.SeriesPoints(colors=[bp.CHANNEL_COLOURS["baro"]], names=[word]))
+            self.writer.scalars(entity, ns, (h,))
+        self._raw_pending = keep
+
+    def _readout(self, report: EpochReport, ns: int) -> None:
+        states = (report.overall, *(st.state for st in report.sources.values()))
+        last = self._readout_ns
+        if last is not None and states == self._readout_states and 0 <= ns - last < self.readout_every_ns:
+            return
+        self._readout_ns, self._readout_states = ns, states
+        self.writer.document(bp.READOUT, ns, readout_markdown(report))
 
     def _emit_rate(self, kind: str, ns: int, rate: float) -> None:
         self._style(*bp.input_styles("rate", kind))
@@ -516,12 +570,15 @@ class RerunSink(Sink):
         if not self.enabled:
             return
         ns = self.clock.ns(report.boot, report.t_us)
+        if self._raw_pending:
+            self._judge_raw(report)
         for entity, values in epoch_rows(report):
             self.writer.scalars(entity, ns, values)
         for entity, state in epoch_states(report):
             if self._states.get(entity) != state:
                 self._states[entity] = state
                 self.writer.state(entity, ns, state)
+        self._readout(report, ns)
         if self._urgent:  # an alarm in this epoch: show it now, with its state change
             self._urgent = False
             self.writer.flush()
@@ -546,6 +603,7 @@ class RerunSink(Sink):
         self._closed = True
         try:
             if self.enabled:
+                self._judge_raw(None)
                 self.writer.flush()
             self._check_targets(force=True)
             for o in self.outputs:
@@ -631,9 +689,69 @@ def epoch_states(r: EpochReport) -> list[tuple[str, str]]:
     return out
 
 
+def raw_used(sensor: str, r: EpochReport) -> bool:
+    """Whether the monitor used a raw height of ``sensor`` judged at epoch ``r``.
+
+    Not when its source is in alarm (excluded), nor, for GNSS and the
+    rangefinder, when the source is usable (nominal, caution) but its channel
+    took no row of that sensor at that epoch (``norm_innov_aux`` NaN: the gate
+    refused it, or it came too late). Otherwise (the baro of a usable
+    baro+INS, a source still unavailable) it is shown as used.
+    """
+    source = "baro_ins" if sensor.startswith("baro") else sensor
+    st = r.sources.get(source)
+    if st is None:
+        return True
+    if st.state == "alarm":
+        return False
+    if source in CHANNEL_NAMES and st.state in ("nominal", "caution"):
+        aux = r.channels[CHANNEL_NAMES.index(source)].norm_innov_aux
+        return aux == aux
+    return True
+
+
+_WHAT_TO_DO = {
+    "nominal": "",
+    "caution": "Carry on; watch the named source, be ready.",
+    "unavailable": "Do not rely on this height near the ground: keep a margin.",
+    "alarm": "Stop height-critical work; hold or climb to a safe height; cross-check.",
+}
+
+
+def readout_markdown(r: EpochReport) -> str:
+    """The pilot's readout of one epoch: the fused height and the overall state in large
+    type, then what is not nominal and why, and what to do (README's table, in short)."""
+    h, s = _f(r.height_fused_m), _f(r.sigma_fused_m)
+    height = f"{h:.1f} m" if h == h else "no height"
+    sigma = f"±{s:.1f} m (1σ) above home" if s == s else "above home"
+    vpl = _f(r.vpl_m)
+    protection = (f"protection level {vpl:.1f} m, alert limit {r.alert_limit_m:.1f} m" if vpl == vpl
+                  else f"no protection level (alert limit {r.alert_limit_m:.1f} m)")
+    lines = [f"# {height}", f"{sigma}; {protection}", "", f"# {r.overall.upper()}"]
+    todo = _WHAT_TO_DO.get(r.overall, "")
+    if todo:
+        lines += ["", f"*{todo}*"]
+    lines.append("")
+    fine = []
+    for src in SOURCES:
+        st = r.sources.get(src)
+        if st is None:
+            continue
+        word = bp.SOURCE_WORDS.get(src, src)
+        if st.state == "nominal":
+            fine.append(word)
+        else:
+            lines.append(f"- **{word} {st.state}**: {st.reason}" if st.reason else f"- **{word} {st.state}**")
+    if fine:
+        lines.append(f"- nominal: {', '.join(fine)}")
+    lines += ["", f"vehicle time {r.t_s:.1f} s, boot {r.boot}"]
+    return "\n".join(lines)
+
+
 def alarm_text(e: AlarmEvent) -> str:
     text = f"{e.source}: {e.previous} -> {e.state}"
     return f"{text}: {e.reason}" if e.reason else text
 
 
-__all__ = ["RerunSink", "Output", "ViewerTarget", "BootClock", "epoch_rows", "epoch_states", "alarm_text"]
+__all__ = ["RerunSink", "Output", "ViewerTarget", "BootClock", "epoch_rows", "epoch_states", "alarm_text", "raw_used",
+           "readout_markdown"]
