@@ -13,7 +13,11 @@ and prints both rates and the ratio. Then, for onboard logs (every .bin and
 .ulg in ``../shared/flightlogs`` and in the directories given with
 ``--onboard-dir``), the whole ``mavnav audit`` of each file (decode, samples,
 monitor) against the bare library pass over the same file: a pymavlink
-``DFReader_binary`` + ``recv_msg()`` loop to the end, or ``pyulog.ULog(path)``.
+``DFReader_binary`` + ``recv_msg()`` loop to the end, or ``pyulog.ULog(path)``;
+and the audit's two halves, each timed alone: *ingest* (decode the file and
+build every sample and event: ``read_record`` + the ``OnboardSource``
+stream) and *estimator* (the same pipeline as the audit over those samples,
+already built: epochs, the three filters, the monitor, the audit sink).
 Usage::
 
     .venv/bin/python bench/ingest.py [--minutes 10] [--repeat 3] [--onboard-dir ~/.cache/mavnav-flightlogs]
@@ -142,25 +146,45 @@ def mavnav_audit(path: Path) -> int:
     return audit_file(path, config_from_dict({}))["epochs"]
 
 
+def mavnav_ingest(path: Path) -> list:
+    """Decode and every sample and event, as the audit's source makes them."""
+    from mavnav.config import config_from_dict
+    from mavnav.ingest.onboard.source import OnboardSource, read_record
+
+    return list(OnboardSource(path, config_from_dict({}).ingest, record=read_record(path)))
+
+
+def mavnav_estimator(samples: list) -> int:
+    """The audit's pipeline over samples already built."""
+    from mavnav.audit import AuditSink
+    from mavnav.config import config_from_dict
+    from mavnav.pipeline import run
+
+    return run(iter(samples), config_from_dict({}), [AuditSink()]).epochs
+
+
 def onboard_part(args) -> None:
     dirs = [Path(__file__).resolve().parents[2] / "shared" / "flightlogs"] + [Path(d).expanduser() for d in args.onboard_dir]
     files = sorted(p for d in dirs if d.is_dir() for p in d.iterdir() if p.suffix.lower() in (".bin", ".ulg"))
     print(f"onboard logs: {len(files)} found in {', '.join(str(d) for d in dirs)}")
-    tot = {"dataflash": [0.0, 0.0, 0], "ulog": [0.0, 0.0, 0]}
+    tot = {"dataflash": [0.0, 0.0, 0.0, 0.0, 0], "ulog": [0.0, 0.0, 0.0, 0.0, 0]}
     for p in files:
         kind = "ulog" if p.suffix.lower() == ".ulg" else "dataflash"
         bare = bare_ulog if kind == "ulog" else bare_dataflash
         t_bare, n = best_of(bare, p, args.repeat)
         t_mn, ep = best_of(mavnav_audit, p, args.repeat)
-        tot[kind][0] += t_bare
-        tot[kind][1] += t_mn
-        tot[kind][2] += 1
+        t_in, samples = best_of(mavnav_ingest, p, args.repeat)
+        t_est, _ = best_of(mavnav_estimator, samples, args.repeat)
+        for i, t in enumerate((t_bare, t_mn, t_in, t_est)):
+            tot[kind][i] += t
+        tot[kind][4] += 1
         print(f"  {p.name:48s} bare {t_bare:6.3f} s ({n} records)  mavnav audit {t_mn:6.3f} s ({ep} epochs)  "
-              f"ratio audit/bare {t_mn / t_bare:5.2f}")
-    for kind, (tb, tm, n) in tot.items():
+              f"ratio audit/bare {t_mn / t_bare:5.2f}  (ingest {t_in / t_bare:4.2f}, estimator {t_est / t_bare:4.2f})")
+    for kind, (tb, tm, ti, te, n) in tot.items():
         if n:
             print(f"{kind}: {n} files, bare {tb:.2f} s, mavnav audit {tm:.2f} s: ratio audit/bare {tm / tb:.2f} "
-                  f"(goal <= 1.0)")
+                  f"(goal <= 1.0); alone: ingest {ti:.2f} s = {ti / tb:.2f}x bare, "
+                  f"estimator {te:.2f} s = {te / tb:.2f}x bare")
 
 
 def tlog_part(args) -> None:

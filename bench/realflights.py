@@ -14,11 +14,14 @@ each it found, and prints:
 2. faults injected (``--inject`` semantics, :mod:`mavnav.sim.effects`) at
    25, 50 and 75 % of every flight whose IMU and baro run at 5 Hz or more:
    GNSS step 10 m, GNSS ramp 0.5 m/s, baro step 5 m, baro ramp 0.5 m/s,
-   rangefinder stuck and reading zero (where there is one), accelerometer
-   bias 0.5 m/s^2, each for 20 s. For each: detected, time-to-alarm, source
-   named, wrong exclusions (a healthy source in alarm during the fault) and
-   hazardous output (fused height more than 3 m from the same flight's
-   unfaulted fused height while the overall state is nominal or caution);
+   accelerometer bias 0.5 m/s^2, and rangefinder stuck and reading zero
+   where its usable readings come at 5 Hz or more too (a run whose window
+   holds no usable reading is skipped, and counted), each for 20 s. For
+   each: detected, time-to-alarm, source named, wrong exclusions (a healthy
+   source in alarm during the fault) and hazardous output (fused height more
+   than 3 m from the same flight's unfaulted fused height while the overall
+   state is nominal or caution). Every flight with a downward rangefinder
+   is listed with its rates, and why it was or was not faulted;
 3. the same runs for ``paper`` mode and ``bench/autopilot_baseline.py``.
 
 Numbers are what mavnav does today, good or bad. The fetched logs have no
@@ -53,6 +56,7 @@ from mavnav.config import config_from_dict  # noqa: E402
 from mavnav.errors import MavnavError  # noqa: E402
 from mavnav.ingest import open_log  # noqa: E402
 from mavnav.pipeline import run  # noqa: E402
+from mavnav.samples import RangeHeight, Rejected  # noqa: E402
 from mavnav.sim.effects import SampleFaults  # noqa: E402
 from mavnav.sim.faults import parse_fault  # noqa: E402
 from mavnav.sinks.base import Sink  # noqa: E402
@@ -116,6 +120,33 @@ class _Trace(Sink):
         self.overall.append(r.overall)
 
 
+class _RangeCount(Sink):
+    """Downward rangefinder readings the source gave: used, and refused (by why)."""
+
+    name = "rangefinder count"
+
+    def __init__(self):
+        self.used = 0
+        self.refused: Counter = Counter()
+
+    def sample(self, s) -> None:
+        if isinstance(s, RangeHeight):
+            self.used += 1
+        elif isinstance(s, Rejected) and s.sensor == "range":
+            self.refused[s.kind] += 1
+
+    def summary(self, duration_s: float) -> dict:
+        n = self.used + sum(self.refused.values())
+        per_s = (lambda k: k / duration_s) if duration_s > 0 else (lambda k: 0.0)
+        return {"readings": n, "used": self.used, "refused": dict(self.refused),
+                "readings_hz": per_s(n), "used_hz": per_s(self.used)}
+
+
+def _fault_text(spec: str, onset_s: float, duration_s: float) -> str:
+    """``spec`` (``kind`` or ``kind:key=value,...``) with its window, as ``--inject`` takes it."""
+    return f"{spec}{',' if ':' in spec else ':'}onset={onset_s:.3f},duration={duration_s:.3f}"
+
+
 def _cfg(mode: str):
     return config_from_dict({"monitor": {"mode": mode}})
 
@@ -155,17 +186,20 @@ def flight_job(spec: dict) -> dict:
     path = spec["path"]
     t0 = time.perf_counter()
     out = {"path": path, "sitl": spec["sitl"]}
+    rng = _RangeCount()
     try:
-        res = audit_file(path, _cfg("adaptive"))
+        res = audit_file(path, _cfg("adaptive"), extra_sinks=[rng])
     except MavnavError as exc:
         out["error"] = str(exc)
         return out
     out["audit"] = _part1(res)
+    out["audit"]["rangefinder"] = rng.summary(res["duration_s"])
     rates = res["inputs"]["rates_hz"]
     fast = rates["imu"] >= MIN_RATE_HZ and rates["baro"] >= MIN_RATE_HZ
     out["fast"] = fast
+    out["rng_faults"] = fast and rates["rangefinder"] >= MIN_RATE_HZ
     if spec["faults"] and fast:
-        out["faults"] = _part2(path, rates)
+        out["faults"], out["faults_skipped"] = _part2(path, rates)
     out["wall_s"] = round(time.perf_counter() - t0, 2)
     return out
 
@@ -199,24 +233,32 @@ def _mav_type(v) -> str:
         v.get("mav_type"), f"type {v.get('mav_type')}")
 
 
-def _part2(path: str, rates: dict) -> List[dict]:
+def _part2(path: str, rates: dict, faults=FAULTS, contenders=CONTENDERS) -> tuple:
+    """Rows of faulted runs, and the runs skipped (a rangefinder fault whose
+    window holds no usable reading: it would change nothing)."""
     cfg = _cfg("adaptive")
     base = list(open_log(path, cfg.ingest))
     t_lo, t_hi = _span(base)
-    clean = {m: _contender(m, base) for m in CONTENDERS}
-    rows = []
-    for name, spec, source in FAULTS:
-        if source == "rangefinder" and rates.get("rangefinder", 0.0) <= 0.0:
+    rng_t = np.array([s.t_us * 1e-6 for s in base if isinstance(s, RangeHeight) and s.boot == 0])
+    clean = {m: _contender(m, base) for m in contenders}
+    rows, skipped = [], []
+    for name, spec, source in faults:
+        if source == "rangefinder" and rates.get("rangefinder", 0.0) < MIN_RATE_HZ:
             continue
         for frac in ONSET_FRACS:
             onset = t_lo + frac * (t_hi - t_lo)
             end = min(onset + FAULT_DURATION_S, t_hi)
             if end - onset < 5.0:
                 continue
-            fault = parse_fault(f"{spec},onset={onset:.3f},duration={end - onset:.3f}")
-            faulted = list(SampleFaults([fault]).apply(base))
-            row = {"fault": name, "source": source, "onset_s": round(onset, 2), "end_s": round(end, 2)}
-            for m in CONTENDERS:
+            if source == "rangefinder" and not ((rng_t >= onset) & (rng_t <= end)).any():
+                skipped.append({"fault": name, "onset_s": round(onset, 2), "why": "no usable rangefinder reading"})
+                continue
+            sf = SampleFaults([parse_fault(_fault_text(spec, onset, end - onset))])
+            faulted = list(sf.apply(base))
+            changed = sf.report()[0]
+            row = {"fault": name, "source": source, "onset_s": round(onset, 2), "end_s": round(end, 2),
+                   "samples_changed": changed["samples_modified"] + changed["samples_dropped"]}
+            for m in contenders:
                 r = _contender(m, faulted)
                 d = detect(r["alarms"], onset, end, source, grace_s=2.0)
                 wrong = sorted({ev.source for ev in alarm_onsets(r["alarms"])
@@ -225,7 +267,7 @@ def _part2(path: str, rates: dict) -> List[dict]:
                           "blamed": list(d.first_sources), "wrong": wrong,
                           "hazard_s": _hazard_s(r, clean[m], onset, end)}
             rows.append(row)
-    return rows
+    return rows, skipped
 
 
 def _hazard_s(r: dict, clean: dict, onset: float, end: float) -> float:
@@ -304,6 +346,8 @@ def report(groups: Dict[str, List[Path]], results: List[dict], wall: float, args
       + ", ".join(f"{s} {100 * tot[f'caution_{s}'] / (hours * 3600) if hours else 0:.1f} %" for s in SENSOR_SOURCES)
       + f"; fused vs autopilot RMS (time-weighted) "
       f"{math.sqrt(tot['sq'] / tot['sq_t']) if tot['sq_t'] else float('nan'):.2f} m.")
+    p("")
+    p(rangefinder_lines(ok, faults=not args.no_faults))
     faulted = [row for r in ok for row in r.get("faults", [])]
     if faulted:
         n_fl = sum(1 for r in ok if r.get("faults"))
@@ -315,8 +359,14 @@ def report(groups: Dict[str, List[Path]], results: List[dict], wall: float, args
         p("| fault | runs | " + " | ".join(f"{m}: detected / median TTA s / isolated / wrong excl. / hazardous"
                                          for m in CONTENDERS) + " |")
         p("|---|---|" + "---|" * len(CONTENDERS))
-        for name, _spec, _src in FAULTS + (("all", None, None),):
+        for name, _spec, src in FAULTS + (("all", None, None),):
             rows = [x for x in faulted if name == "all" or x["fault"] == name]
+            if not rows and src == "rangefinder":
+                skipped = sum(1 for r in ok for x in r.get("faults_skipped", []) if x["fault"] == name)
+                why = (f"no usable rangefinder reading in any window ({skipped} runs skipped)" if skipped
+                       else f"no flight with a rangefinder at ≥{MIN_RATE_HZ:g} Hz")
+                p(f"| {name} | 0 | {why} |" + " - |" * (len(CONTENDERS) - 1))
+                continue
             if not rows:
                 continue
             cells = []
@@ -329,6 +379,36 @@ def report(groups: Dict[str, List[Path]], results: List[dict], wall: float, args
                 cells.append(f"{det}/{len(rows)} / {fmt(med)} / {iso} / {wrong} / {haz}")
             p(f"| {name} | {len(rows)} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
+
+
+def rangefinder_lines(results: List[dict], faults: bool = True) -> str:
+    """Which flights have a downward rangefinder, at what rates, and whether
+    its faults were injected (and if not, why)."""
+    have = [r for r in results if r.get("audit", {}).get("rangefinder", {}).get("readings", 0) > 0]
+    n_rng = sum(1 for r in results if r.get("rng_faults"))
+    head = (f"Downward rangefinders: {len(have)} of {len(results)} flights have one; "
+            f"{n_rng} with IMU, baro and usable rangefinder readings at {MIN_RATE_HZ:g} Hz or more "
+            f"{'get' if faults else 'would get'} the rangefinder faults.")
+    out = [head]
+    for r in have:
+        a = r["audit"]
+        rf, rt = a["rangefinder"], a["rates_hz"]
+        refused = ", ".join(f"{k} {v}" for k, v in sorted(rf["refused"].items(), key=lambda kv: -kv[1]))
+        if not r.get("fast"):
+            verdict = f"not faulted: IMU or baro below {MIN_RATE_HZ:g} Hz"
+        elif not r.get("rng_faults"):
+            verdict = f"not faulted: usable readings below {MIN_RATE_HZ:g} Hz"
+        elif faults:
+            runs = sum(1 for x in r.get("faults", []) if x["source"] == "rangefinder")
+            skipped = sum(1 for x in r.get("faults_skipped", []) if x["fault"].startswith("rng"))
+            verdict = f"faulted: {runs} runs" + (f", {skipped} skipped (no usable reading in the window)"
+                                                 if skipped else "")
+        else:
+            verdict = "qualifies"
+        out.append(f"* {Path(r['path']).name}: {rf['readings_hz']:.1f} Hz of readings, {rf['used_hz']:.1f} Hz usable"
+                   + (f" ({refused} refused)" if refused else "")
+                   + f"; IMU {rt['imu']:.0f} Hz, baro {rt['baro']:.1f} Hz; {verdict}")
+    return "\n".join(out)
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from mavnav.errors import InputError
+from mavnav.ingest.onboard import ulog as ulog_mod
 from mavnav.ingest.onboard.ulog import read_ulog
 
 pyulog = pytest.importorskip("pyulog")
@@ -445,3 +446,157 @@ def test_handbuilt_definitions_loop_terminates(tmp_path):
     th.join(15)
     assert "rec" in result, "read_ulog did not return within 15 s"
     assert any("round in circles" in x for x in result["rec"].damage)
+
+
+# ---------------------------------------------------------------------------------- bulk reader = pyulog's loop
+
+
+def _ulog_state(parsed) -> dict:
+    """Everything pyulog's loop leaves behind, and what the guard saw."""
+    u, fh = parsed.ulog, parsed.fh
+    return dict(
+        data=[(d.name, d.multi_id, d.msg_id, [(k, v.dtype.str, v.tobytes()) for k, v in d.data.items()])
+              for d in u.data_list],
+        info=u._msg_info_dict, info_types=u._msg_info_dict_types, info_multiple=u._msg_info_multiple_dict,
+        changed=u._changed_parameters, defaults=u._default_parameters,
+        logged=[(m.log_level, m.timestamp, m.message) for m in u._logged_messages],
+        tagged={k: [(m.log_level, m.tag, m.timestamp, m.message) for m in v]
+                for k, v in u._logged_messages_tagged.items()},
+        dropouts=[(d.duration, d.timestamp) for d in u._dropouts],
+        corrupt=u._file_corrupt, last_timestamp=u._last_timestamp, syncs=u._sync_seq_cnt, has_sync=u._has_sync,
+        missing=u._missing_message_ids, filtered=u._filtered_message_ids, printed=parsed.printed,
+        cut=fh.cut, stopped_at=fh.stopped_at, gave_up_at=fh.gave_up_at, last_back=fh._last_back,
+        regressions=fh._regressions)
+
+
+def _records_equal(a, b) -> None:
+    assert (a.firmware, a.vehicle, a.home_alt_msl_m, a.origin_alt_msl_m, a.messages, a.damage, a.bytes_read) == \
+        (b.firmware, b.vehicle, b.home_alt_msl_m, b.origin_alt_msl_m, b.messages, b.damage, b.bytes_read)
+    for key in ("imu", "attitude", "baro", "gnss", "rangefinder", "autopilot"):
+        sa, sb = getattr(a, key), getattr(b, key)
+        assert (sa is None) == (sb is None), key
+        if sa is None:
+            continue
+        for field, va in vars(sa).items():
+            vb = getattr(sb, field)
+            if isinstance(va, np.ndarray):
+                assert va.dtype == vb.dtype and va.tobytes() == vb.tobytes(), f"{key}.{field}"
+            else:
+                assert va == vb, f"{key}.{field}"
+
+
+def _bulk_against_loop(p: Path):
+    """The bulk reader's pyulog state and record equal pyulog's loop's; returns
+    where the bulk read got to (None: not used) and whether the file was corrupt."""
+    size = p.stat().st_size
+    bulk = ulog_mod._load_bulk(str(p), size)
+    try:
+        ref, failed = ulog_mod._load(str(p), size, bulk=False)
+    except InputError:
+        ref, failed = None, True
+    if bulk is None:
+        return None, None
+    assert not failed, "pyulog's loop raised where the bulk reader did not"
+    assert _ulog_state(bulk) == _ulog_state(ref)
+    _records_equal(read_ulog(p), read_ulog(p, bulk=False))
+    return bulk.bulk_to, bulk.ulog._file_corrupt
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_bulk_reader_equals_pyulog_loop(name):
+    p = log_path(name)
+    bulk_to, corrupt = _bulk_against_loop(p)
+    assert bulk_to == p.stat().st_size, "the bulk reader must read a committed log to its end"
+    assert corrupt == (name in ("aut_plane_plexus.ulg", "aut_quad_v6xrt.ulg"))  # both resync on corrupt bytes
+
+
+def _data_start(p: Path) -> int:
+    import pyulog.core as core
+
+    fh = ulog_mod._open(str(p), p.stat().st_size)
+    core.ULog(fh, list(ulog_mod.TOPICS), True, True)
+    return fh.stopped_at
+
+
+@pytest.mark.parametrize("name", ["frs_gps_interference.ulg", "frs_motor_failure_hexa.ulg"])
+def test_bulk_reader_equals_pyulog_loop_on_damaged_copies(tmp_path, name):
+    """Flips, garbage (with and without a sync sequence), splices, zeroed runs
+    and cuts in the data section; the first log has sync messages, the
+    second (PX4 1.9) none, so pyulog resyncs on one and not the other."""
+    src = log_path(name)
+    raw = src.read_bytes()
+    start = _data_start(src)
+    rng = random.Random(1100)
+    outcomes = []
+    for k in range(24):
+        b = bytearray(raw)
+        kind = ("flip", "garbage", "sync", "splice", "zero", "cut")[k % 6]
+        i = rng.randrange(start, len(b))
+        if kind == "flip":
+            for _ in range(rng.choice([1, 4, 30])):
+                j = rng.randrange(start, len(b))
+                b[j] ^= 1 << rng.randrange(8)
+        elif kind == "garbage":
+            b[i:i] = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 300)))
+        elif kind == "sync":
+            b[i:i] = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 80))) + bytes(ulog_mod._SYNC)
+        elif kind == "splice":
+            del b[i:i + rng.randrange(1, 5000)]
+        elif kind == "zero":
+            n = min(rng.randrange(1, 2000), len(b) - i)
+            b[i:i + n] = bytes(n)
+        else:
+            b = b[:i]
+        p = tmp_path / f"{kind}_{k}.ulg"
+        p.write_bytes(bytes(b))
+        bulk_to, corrupt = _bulk_against_loop(p)
+        outcomes.append((bulk_to == len(b), bool(corrupt)))
+    assert (True, True) in outcomes, "no copy was read to its end in bulk across a resync"
+    assert any(not whole for whole, _ in outcomes), "no copy was handed over to pyulog's loop"
+
+
+def _baro_rows(t0: int, n: int) -> list:
+    return [_data(1, struct.pack("<QIf", 1000 * (t0 + i), 7, 100000.0 + i)) for i in range(n)]
+
+
+SYNC = bytes([0x2F, 0x73, 0x13, 0x20, 0x25, 0x0C, 0xBB, 0x12])
+
+
+@pytest.mark.parametrize("case,whole,corrupt,rows", [
+    ("unknown_type", True, False, 20),  # a remove-logged message: skipped by pyulog, no damage
+    ("corrupt_header_then_sync", True, True, 20),  # resync after the garbage
+    ("sync_inside_unknown", True, True, 20),  # resync inside an unknown message
+    ("corrupt_header_no_sync", False, True, 10),  # no sync after: pyulog goes on byte by byte
+    ("corrupt_header_far_sync", True, True, 20),  # the sync several of pyulog's 512-byte chunks on
+    ("sync_ends_a_chunk", True, True, 20),  # ... ending exactly where pyulog's third chunk ends
+    ("sync_ends_the_file", True, True, 10),
+    ("dropout", True, False, 20),  # its time: the latest data time before it
+    ("same_topic_twice", True, False, 14),  # sensor_baro instance 0 subscribed twice: pyulog lists the second first
+])
+def test_bulk_reader_follows_pyulog_recovery(tmp_path, case, whole, corrupt, rows):
+    head = [_fmt(BARO_FMT), _add(0, 1, "sensor_baro"), *_baro_rows(1, 10)]
+    tail = _baro_rows(11, 10)
+    if case == "unknown_type":
+        mid = [_msg("R", struct.pack("<H", 99))]
+    elif case == "corrupt_header_then_sync":
+        mid = [struct.pack("<HB", 0, 0), b"\x07" * 40, SYNC]
+    elif case == "sync_inside_unknown":
+        mid = [struct.pack("<HB", 29, ord("X")), b"\x01" * 10, SYNC, _msg("S", SYNC)]  # on inside it
+    elif case == "corrupt_header_no_sync":
+        mid = [struct.pack("<HB", 0, 0), b"\x07" * 40]
+    elif case == "corrupt_header_far_sync":
+        mid = [struct.pack("<HB", 0, 0), b"\x07" * 1500, SYNC]
+    elif case == "sync_ends_a_chunk":  # chunks from the byte after the header, 505 bytes apart
+        mid = [struct.pack("<HB", 0, 0), b"\x07" * (2 * 505 + 502), SYNC]
+    elif case == "sync_ends_the_file":
+        mid, tail = [struct.pack("<HB", 0, 0), b"\x07" * 700, SYNC], []
+    elif case == "dropout":
+        mid = [_msg("O", struct.pack("<H", 250))]
+    else:
+        mid = [_add(0, 2, "sensor_baro"), _data(2, struct.pack("<QIf", 500_000, 7, 90000.0))]
+        tail = _baro_rows(11, 4) + [_data(2, struct.pack("<QIf", 600_000, 7, 90000.0))]
+    p = tmp_path / f"{case}.ulg"
+    p.write_bytes(_ulog(*head, *mid, *tail))
+    bulk_to, was_corrupt = _bulk_against_loop(p)
+    assert (bulk_to == p.stat().st_size, was_corrupt) == (whole, corrupt)
+    assert len(read_ulog(p).baro.t_us) == rows

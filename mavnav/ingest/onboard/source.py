@@ -27,8 +27,9 @@ applies to MAVLink, vectorised over whole series:
   home) altitude and the GNSS reference are both known, else in the
   autopilot's own datum (``stats.autopilot_reference`` says which).
 * **Order.** All samples merged by vehicle time (ties: IMU, baro, GNSS,
-  rangefinder, autopilot), through the same :class:`~..streams.KindGuard`
-  as tlogs (gaps reported). ``recv_s`` is the vehicle time in seconds: an
+  rangefinder, autopilot), through the rule of :class:`~..streams.KindGuard`
+  as tlogs (gaps reported; computed per kind at once by
+  :func:`_guard_series`). ``recv_s`` is the vehicle time in seconds: an
   onboard log has no receive clock.
 
 An onboard log is one boot: no reboots, no link.
@@ -56,7 +57,6 @@ from ...samples import (
     SpecificForceUp,
 )
 from ..stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
-from ..streams import KindGuard
 from .head import read_head
 from .record import OnboardRecord
 
@@ -67,6 +67,16 @@ ULOG_MAGIC = b"ULog\x01\x12\x35"
 
 # merge order at equal times
 _IMU, _BARO, _GNSS, _RANGE, _RANGE_REJ, _AP, _IMU_REJ = range(7)
+_KIND = {_IMU: "imu", _BARO: "baro", _GNSS: "gnss", _RANGE: "range", _AP: "autopilot"}  # samples, not events
+_VERDICT = {1: "duplicate", 2: "out_of_order"}
+
+try:  # numba is a dependency; without it the kernel runs (slowly) as plain Python
+    from numba import njit
+except ImportError:  # pragma: no cover
+    def njit(*args, **kwargs):
+        if args and callable(args[0]):
+            return args[0]
+        return lambda f: f
 
 
 def detect_onboard(head: bytes) -> Optional[str]:
@@ -279,6 +289,15 @@ class _Builder:
         tags = np.concatenate([np.full(c[0].size, c[1], dtype=np.int8) for c in self.cols])
         idx = np.concatenate([np.arange(c[0].size) for c in self.cols])
         order = np.lexsort((tags, ts))
+        # the KindGuard rule per kind, over that kind's items in merged order
+        ts_o, tags_o = ts[order].astype(np.int64), tags[order]
+        verdicts_a, gaps_a = np.zeros(ts_o.size, dtype=np.int8), np.zeros(ts_o.size)
+        for tag in _KIND:
+            sel = np.flatnonzero(tags_o == tag)
+            if sel.size:
+                verdicts_a[sel], gaps_a[sel] = _guard_series(ts_o[sel], float(self.cfg.gap_min_s * 1e6),
+                                                             float(self.cfg.gap_factor))
+        verdicts, gaps = verdicts_a.tolist(), gaps_a.tolist()
         t0, t1 = int(ts.min()), int(ts.max())
         st.duration_s = (t1 - t0) / 1e6
         dur = st.duration_s
@@ -286,13 +305,12 @@ class _Builder:
         by_tag = {c[1]: [a.tolist() if hasattr(a, "tolist") else a for a in c] for c in self.cols}
         yield from self.refs
         st.events["ReferenceSet"] += len(self.refs)
-        guard = KindGuard(self.cfg.gap_min_s, self.cfg.gap_factor)
         imu_name = rec.imu.name if rec.imu is not None else ""
         rng_name = rec.rangefinder.name if rec.rangefinder is not None else ""
         ap_name = rec.autopilot.name if rec.autopilot is not None else ""
         baro_inst = rec.baro.instance + 1 if rec.baro is not None else 1
         samples = st.samples
-        for tag, i in zip(tags[order].tolist(), idx[order].tolist()):
+        for tag, i, verdict, gap_s in zip(tags[order].tolist(), idx[order].tolist(), verdicts, gaps):
             c = by_tag[tag]
             t = c[0][i]
             recv = t * 1e-6
@@ -318,9 +336,8 @@ class _Builder:
                 yield Rejected(recv, "no_attitude", f"{imu_name}: no attitude within {self.cfg.attitude_max_age_s} s", t, 0,
                                sensor="imu")
                 continue
-            verdict, gap_s = guard.check(kind, 0, t)
-            if verdict != "ok":  # cannot happen after the decoder's sort; kept as the tlog rule
-                st.rejected[verdict] += 1
+            if verdict:  # cannot happen after the decoder's sort; kept as the tlog rule
+                st.rejected[_VERDICT[verdict]] += 1
                 continue
             if gap_s > 0.0:
                 st.gaps.append(GapRecord(kind, t, 0, gap_s))
@@ -328,6 +345,36 @@ class _Builder:
                 yield Gap(t_us=t, recv_s=recv, boot=0, kind=kind, length_s=gap_s)
             samples[kind] += 1
             yield s
+
+
+@njit(cache=True)
+def _guard_series(t_us, gap_min_us, gap_factor):  # pragma: no cover - compiled
+    """:meth:`~..streams.KindGuard.check` over one kind's times in order, at
+    once: per item 0 ok, 1 duplicate, 2 out of order, and the gap (s) before
+    it (0: none). The same arithmetic; ``tests/test_ingest_onboard_source.py``
+    checks the two agree."""
+    n = t_us.size
+    verdict = np.zeros(n, dtype=np.int8)
+    gap_s = np.zeros(n)
+    last = 0
+    avg = 0.0
+    have_avg = False
+    for i in range(n):
+        t = t_us[i]
+        if i == 0:
+            last = t
+            continue
+        if t <= last:
+            verdict[i] = 1 if t == last else 2
+            continue
+        dt = t - last
+        last = t
+        if have_avg and dt > max(gap_min_us, gap_factor * avg):
+            gap_s[i] = dt / 1e6
+            continue
+        avg = dt if not have_avg else avg + 0.1 * (dt - avg)
+        have_avg = True
+    return verdict, gap_s
 
 
 _RANGE_WHY = {1: "invalid_status", 2: "out_of_range", 3: "stuck", 4: "no_attitude", 5: "tilt"}

@@ -44,6 +44,25 @@ nothing usable can be read, raises :class:`~mavnav.errors.InputError`.
 pyulog reports corruption with ``print``: those lines are captured (per
 thread) into ``damage`` instead of reaching stdout. It reads through a file
 object that watches its seeks, so that a corrupt file cannot make it loop.
+
+Speed: pyulog reads the data section one message at a time in Python (two
+reads, a dispatch and a buffer append per message, kept topic or not). The
+same result is built in bulk (:func:`_load_bulk`): pyulog reads the header
+and definitions; a compiled walk (:func:`_walk`) finds every message's
+offset, following pyulog's recovery from corrupt bytes (its resync on the
+sync sequence) step for step; the rows of the kept topics are gathered with
+numpy into the buffers pyulog would have filled; every other message
+(subscriptions, info, parameters, log strings, dropouts) goes through
+pyulog's own message classes in file order. Where pyulog's loop would do
+something the walk does not follow (a message cut by the end of the file,
+a resync that finds no sync sequence, a message its classes refuse, a
+subscription given twice), pyulog's own loop takes over from that message,
+in the state it would be in there, so damage is found and reported exactly
+as before; with appended data or damaged definitions it reads the whole
+file. ``read_ulog(path,
+bulk=False)`` is pyulog's loop throughout; the tests check both give the
+same pyulog state and record on every committed log and on cut, spliced and
+bit-flipped copies.
 """
 
 from __future__ import annotations
@@ -60,6 +79,14 @@ import numpy as np
 
 from ...errors import InputError
 from .head import read_head
+
+try:  # numba is a dependency; without it the walk runs (slowly) as plain Python
+    from numba import njit
+except ImportError:  # pragma: no cover
+    def njit(*args, **kwargs):
+        if args and callable(args[0]):
+            return args[0]
+        return lambda f: f
 from .record import (
     AttitudeSeries,
     AutopilotSeries,
@@ -198,10 +225,11 @@ def _probe(path: str) -> int:
 
 
 class _Parsed:
-    def __init__(self, ulog, fh: _Guard, printed: List[str]):
+    def __init__(self, ulog, fh: _Guard, printed: List[str], bulk_to: Optional[int] = None):
         self.ulog = ulog
         self.fh = fh
         self.printed = printed
+        self.bulk_to = bulk_to  # the data section was read in bulk up to this offset (None: not at all)
 
 
 def _parse(fh: _GuardedFile) -> _Parsed:
@@ -228,11 +256,16 @@ def _open(path: str, size: int, limit: Optional[int] = None) -> _GuardedFile:
         raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
 
 
-def _load(path: str, size: int) -> Tuple[_Parsed, List[str]]:
+def _load(path: str, size: int, bulk: bool = True) -> Tuple[_Parsed, List[str]]:
     """pyulog's view of ``path``, and a damage line if pyulog raised mid-file
-    (then the file is read again up to just before where it failed)."""
+    (then the file is read again up to just before where it failed).
+    ``bulk``: try :func:`_load_bulk` first (the same result, faster)."""
     from pyulog.exceptions import ULogIncompatibleFlagException
 
+    if bulk:
+        parsed = _load_bulk(path, size)
+        if parsed is not None:
+            return parsed, []
     fh = _open(path, size)
     try:
         return _parse(fh), []
@@ -248,6 +281,297 @@ def _load(path: str, size: int) -> Tuple[_Parsed, List[str]]:
     except Exception as exc:
         raise InputError(f"{path}: unreadable ULog ({type(exc).__name__}: {exc})"[:300]) from None
     return parsed, [f"pyulog failed at byte {at} of {size} ({why}); read up to there, the rest is lost"]
+
+
+
+# --------------------------------------------------------------------- bulk data section
+
+_MSG_D, _MSG_A = ord("D"), ord("A")
+# the data-section message types pyulog's loop reads; any other goes to its corruption recovery
+_KNOWN_TYPES = np.zeros(256, dtype=np.bool_)
+_KNOWN_TYPES[[ord(c) for c in "DAIMPQLCOS"]] = True
+_SYNC = np.frombuffer(b"\x2F\x73\x13\x20\x25\x0C\xBB\x12", dtype=np.uint8)  # ULog.SYNC_BYTES
+_SYNC_CHUNK = 512  # pyulog's _find_sync reads this much at a time, stepping back len(SYNC) - 1
+
+
+@njit(cache=True)
+def _find_sync(buf, lo, hi, sync):  # pragma: no cover - compiled
+    """First offset ``j`` with ``buf[j:j+8] == sync`` inside ``[lo, hi)``, else -1."""
+    m = sync.size
+    for j in range(lo, hi - m + 1):
+        if buf[j] == sync[0]:
+            ok = True
+            for q in range(1, m):
+                if buf[j + q] != sync[q]:
+                    ok = False
+                    break
+            if ok:
+                return j
+    return -1
+
+
+@njit(cache=True)
+def _walk(buf, start, limit, known, sync, last_back):  # pragma: no cover - compiled
+    """pyulog's ``_read_file_data`` walk over the messages from ``start``
+    (3-byte header: uint16 size, uint8 type) up to ``limit``, without
+    decoding them. Returns the offsets of the messages of a type its loop
+    reads, where the walk stopped (``buf.size``: a clean end; else the
+    offset from which pyulog's own loop must go on: a message cut by the
+    end of the file, or a recovery this walk does not follow), whether a
+    recovery declared the file corrupt, and the guard's ``_last_back``
+    (the last destination of a seek back) at that point.
+
+    A message of another type is pyulog's recovery: a header that cannot be
+    one (type 0, size 0 or above 10000) means corruption, one byte on and
+    then the next sync sequence anywhere after it; any other unknown
+    message is skipped, unless a sync sequence lies inside it (then
+    corruption, and on after the sync). Its seeks back are tracked as
+    :class:`_Guard` sees them; a search that finds no sync up to the end of
+    the file, or a seek back not beyond the previous one, is left to pyulog."""
+    n = buf.size
+    m = sync.size
+    offs = np.empty((n - start) // 3 + 1, dtype=np.int64)
+    k = 0
+    pos = start
+    corrupt = False
+    while pos + 3 <= n and pos < limit:
+        size = np.int64(buf[pos]) | (np.int64(buf[pos + 1]) << 8)
+        typ = buf[pos + 2]
+        end = pos + 3 + size
+        if end > n:
+            break  # cut inside this message
+        if known[typ]:
+            offs[k] = pos
+            k += 1
+            pos = end
+            continue
+        if typ == 0 or size == 0 or size > 10000:  # corrupt header: one byte on, then the next sync
+            dest = pos + 1
+            if dest <= last_back:
+                break
+            j = _find_sync(buf, dest, n, sync)
+            if j < 0:
+                break  # no sync to the end: pyulog goes on byte by byte without it
+            last_back = dest
+            cs = dest  # pyulog reads 512-byte chunks, stepping back m - 1 bytes after each
+            while j + m > cs + _SYNC_CHUNK:
+                cs += _SYNC_CHUNK - (m - 1)
+            if cs > dest:
+                last_back = cs
+            if j + m < min(cs + _SYNC_CHUNK, n):  # back from the chunk's end to just after the sync
+                last_back = j + m
+            corrupt = True
+            pos = j + m
+        else:  # an unknown message: skipped, unless a sync sequence lies inside it
+            dest = pos + 3
+            if dest <= last_back:
+                break
+            last_back = dest
+            j = _find_sync(buf, dest, end, sync) if size >= m else -1
+            if j < 0:
+                pos = end
+            else:
+                if j + m < end:
+                    last_back = j + m
+                corrupt = True
+                pos = j + m
+    stop = n if pos == n else pos
+    return offs[:k], stop, corrupt, last_back
+
+
+def _u16(buf: np.ndarray, at: np.ndarray) -> np.ndarray:
+    return buf[at].astype(np.int64) | (buf[at + 1].astype(np.int64) << 8)
+
+
+def _load_bulk(path: str, size: int) -> Optional[_Parsed]:
+    """pyulog's result with the regular part of the data section read in bulk;
+    None if pyulog raises (then :func:`_load` reads the file its own way)."""
+    import pyulog.core as core
+
+    _install_print_capture(core)
+    printed: List[str] = []
+    fh = _open(path, size)
+    _capture.lines = printed
+    try:
+        u = core.ULog(fh, message_name_filter_list=list(TOPICS), disable_str_exceptions=True,
+                      parse_header_only=True)
+        if (fh.cut is not None or fh.gave_up_at is not None or u.has_data_appended
+                or not hasattr(u, "_subscriptions")):
+            return None  # the header or definitions are damaged, or appended data: pyulog's own loop
+        start = fh.stopped_at  # pyulog closed the file where its definitions end
+        with open(path, "rb") as f:
+            buf = np.frombuffer(f.read(), dtype=np.uint8)
+        if buf.size != size:
+            return None
+        stop, last_back = _data_section(u, core.ULog, buf, start, fh._last_back, printed)
+        if stop < size:  # irregular from there on: pyulog's own loop reads the rest
+            rest = _open(path, size)
+            rest.seek(stop)
+            rest._last_back, rest._regressions, rest._loops = last_back, fh._regressions, fh._loops
+            fh = rest
+            u._file_handle = fh
+            try:
+                u._read_file_data(list(TOPICS))
+            finally:
+                if not fh.closed:
+                    fh.stopped_at = fh.tell()
+                    fh.close()
+                del u._file_handle
+        else:  # where pyulog's loop ends, as the guard saw it
+            fh.stopped_at, fh._last_back = size, last_back
+    except Exception:
+        return None
+    finally:
+        _capture.lines = None
+        if not fh.closed:
+            fh.close()
+    return _Parsed(u, fh, printed, bulk_to=stop)
+
+
+def _data_section(u, ULog, buf: np.ndarray, start: int, last_back: int, printed: List[str]) -> Tuple[int, int]:
+    """Read the data section of ``buf`` from ``start`` into ``u`` (a pyulog
+    ULog that has read its definitions) as pyulog's ``_read_file_data``
+    would, up to where its loop does something :func:`_walk` and this
+    function do not follow. Returns that offset (``buf.size``: the end, and
+    ``u`` is complete; else ``u`` is in the state pyulog's loop is in when
+    it gets there) and the guard's ``_last_back`` there (``last_back``: at
+    ``start``)."""
+    offs, stop, _, _ = _walk(buf, start, buf.size, _KNOWN_TYPES, _SYNC, last_back)
+    types = buf[offs + 2]
+    sizes = _u16(buf, offs)
+    short = (types == _MSG_D) & (sizes < 2)
+    if short.any():  # a data message too short for its id: pyulog stops there
+        stop = int(offs[np.argmax(short)])
+    header = ULog._MessageHeader()
+
+    # every message but data, through pyulog's own classes, in file order
+    others: List[tuple] = []  # (offset, type, parsed message)
+    since: Dict[int, int] = {}  # msg_id -> offset of its subscription
+    rest = (types != _MSG_D) & (offs < stop)
+    for o, n, typ in zip(offs[rest].tolist(), sizes[rest].tolist(), types[rest].tolist()):
+        header.msg_size, header.msg_type = n, typ
+        data = buf[o + 3:o + 3 + n].tobytes()
+        try:
+            if typ == _MSG_A:
+                msg = ULog._MessageAddLogged(data, header, u._message_formats)
+                if msg.msg_id in since:  # subscribed again: pyulog's loop replaces the first
+                    raise ValueError("msg_id subscribed twice")
+                since[msg.msg_id] = o
+            elif typ in (ULog.MSG_TYPE_INFO, ULog.MSG_TYPE_PARAMETER):
+                msg = ULog._MessageInfo(data, header)
+            elif typ == ULog.MSG_TYPE_INFO_MULTIPLE:
+                msg = ULog._MessageInfo(data, header, is_info_multiple=True)
+            elif typ == ULog.MSG_TYPE_PARAMETER_DEFAULT:
+                msg = ULog._MessageParameterDefault(data, header)
+            elif typ == ULog.MSG_TYPE_LOGGING:
+                msg = ULog.MessageLogging(data, header)
+            elif typ == ULog.MSG_TYPE_LOGGING_TAGGED:
+                msg = ULog.MessageLoggingTagged(data, header)
+            elif typ == ULog.MSG_TYPE_DROPOUT:
+                msg = ULog.MessageDropout(data, header, 0)  # its time is set below
+            else:  # sync
+                msg = None
+        except Exception:  # pyulog's loop reports (or stops at) this message
+            stop = o
+            break
+        others.append((o, typ, msg))
+    filt = list(TOPICS)
+    subs = {m.msg_id: m for o, t, m in others if t == _MSG_A and m.message_name in filt}
+
+    # data messages before ``stop``: subscribed before them, kept topic, valid size
+    is_d = (types == _MSG_D) & (offs < stop)
+    d_offs, d_sizes = offs[is_d], sizes[is_d]
+    d_ids = _u16(buf, d_offs + 3)
+    for msg_id, sub in subs.items():  # pyulog reads 8 timestamp bytes: past a short row, it stops
+        if sub.timestamp_offset + 8 > sub.dtype.itemsize:
+            later = (d_ids == msg_id) & (d_offs > since[msg_id])
+            if later.any():
+                stop = min(stop, int(d_offs[np.argmax(later)]))
+    # the walk again, to ``stop``: its recoveries before there only
+    _, _, corrupt, last_back = _walk(buf, start, stop, _KNOWN_TYPES, _SYNC, last_back)
+    if corrupt:
+        u._file_corrupt = True
+    if stop < buf.size:
+        others = [x for x in others if x[0] < stop]
+        subs = {m.msg_id: m for o, t, m in others if t == _MSG_A and m.message_name in filt}
+        since = {i: o for i, o in since.items() if o < stop}
+        keep = d_offs < stop
+        d_offs, d_sizes, d_ids = d_offs[keep], d_sizes[keep], d_ids[keep]
+    table = np.full(int(d_ids.max()) + 1 if d_ids.size else 1, buf.size, dtype=np.int64)
+    for i, o in since.items():
+        if i < table.size:
+            table[i] = o
+    known = d_offs > table[d_ids] if d_ids.size else np.zeros(0, dtype=bool)
+    missing: List[int] = []
+    if not known.all():
+        ids, first = np.unique(d_ids[~known], return_index=True)
+        missing = ids[np.argsort(first, kind="stable")].tolist()
+        u._file_corrupt = True
+    ts_off, ts_val = [np.zeros(0, dtype=np.int64)], [np.zeros(0, dtype=np.uint64)]
+    for msg_id, sub in subs.items():
+        rows = known & (d_ids == msg_id)
+        if not rows.any():
+            continue
+        o, n = d_offs[rows], d_sizes[rows] - 2
+        item = sub.dtype.itemsize
+        fits = (n >= item) & (n <= sub.max_data_size)
+        if not fits.all():  # pyulog skips a row of the wrong size as corrupt
+            u._file_corrupt = True
+            o = o[fits]
+        if not o.size:
+            continue
+        rows_b = buf[(o + 5)[:, None] + np.arange(item, dtype=np.int64)]
+        sub.buffer += rows_b.tobytes()
+        t = sub.timestamp_offset
+        ts_off.append(o)
+        ts_val.append(np.ascontiguousarray(rows_b[:, t:t + 8]).view("<u8").reshape(-1))
+
+    # pyulog's _last_timestamp before each message: the largest data timestamp so far
+    ro, rt = np.concatenate(ts_off), np.concatenate(ts_val)
+    order = np.argsort(ro, kind="stable")
+    ro, run_max = ro[order], np.maximum.accumulate(rt[order])
+    start_ts = u._last_timestamp
+
+    def last_ts(o: int) -> int:
+        j = int(np.searchsorted(ro, o))
+        return max(start_ts, int(run_max[j - 1])) if j else start_ts
+
+    for o, typ, msg in others:
+        if typ == _MSG_A:
+            if msg.message_name in filt:
+                u._subscriptions[msg.msg_id] = msg
+            else:
+                u._filtered_message_ids.add(msg.msg_id)
+        elif typ == ULog.MSG_TYPE_INFO:
+            u._msg_info_dict[msg.key] = msg.value
+            u._msg_info_dict_types[msg.key] = msg.type
+        elif typ == ULog.MSG_TYPE_INFO_MULTIPLE:
+            u._add_message_info_multiple(msg)
+        elif typ == ULog.MSG_TYPE_PARAMETER:
+            u._changed_parameters.append((last_ts(o), msg.key, msg.value))
+        elif typ == ULog.MSG_TYPE_PARAMETER_DEFAULT:
+            u._add_parameter_default(msg)
+        elif typ == ULog.MSG_TYPE_LOGGING:
+            u._logged_messages.append(msg)
+        elif typ == ULog.MSG_TYPE_LOGGING_TAGGED:
+            u._logged_messages_tagged.setdefault(msg.tag, []).append(msg)
+        elif typ == ULog.MSG_TYPE_DROPOUT:
+            msg.timestamp = last_ts(o)
+            u._dropouts.append(msg)
+        else:
+            u._sync_seq_cnt += 1
+    for msg_id in missing:  # pyulog's warning, once per unknown id, in file order
+        printed.append(f"Warning: no subscription found for message id {msg_id}. Continuing, "
+                       "but file is most likely corrupt")
+    u._missing_message_ids.update(missing)
+    u._last_timestamp = last_ts(buf.size)
+    if stop == buf.size:  # the end: pyulog's final conversion (subscriptions popped last first)
+        while u._subscriptions:
+            _, sub = u._subscriptions.popitem()
+            if len(sub.buffer) > 0:
+                u._data_list.append(ULog.Data(sub))
+        u._data_list.sort(key=lambda ds: (ds.name, ds.multi_id))
+    return stop, last_back
 
 
 def _file_damage(p: _Parsed, size: int) -> List[str]:
@@ -547,12 +871,14 @@ def _vehicle(tp: _Topics, u) -> str:
 
 # --------------------------------------------------------------------- entry point
 
-def read_ulog(path) -> OnboardRecord:
+def read_ulog(path, *, bulk: bool = True) -> OnboardRecord:
     """Decode one PX4 ULog. :class:`InputError` if it is not one at all (or
-    nothing can be read from it); damage to the file is listed in ``damage``."""
+    nothing can be read from it); damage to the file is listed in ``damage``.
+    ``bulk=False`` reads the data section with pyulog's own loop throughout:
+    the reference the bulk reader is tested against (same record, slower)."""
     path = os.fspath(path)
     size = _probe(path)
-    parsed, damage = _load(path, size)
+    parsed, damage = _load(path, size, bulk=bulk)
     failed = bool(damage)
     u = parsed.ulog
     damage += _file_damage(parsed, size)
