@@ -30,7 +30,8 @@ CLIMB_S, UP_M = 20.0, 10.0  # then it climbs to 10 m over 5 s and hovers
 def height(t: float) -> float:
     if t < CLIMB_S:
         return 0.0
-    return UP_M * min(1.0, (t - CLIMB_S) / 5.0) + 0.1 * math.sin(1.3 * t)
+    x = min(1.0, (t - CLIMB_S) / 5.0)  # a smooth climb: the IMU can carry its acceleration
+    return UP_M * 0.5 * (1.0 - math.cos(math.pi * x)) + 0.1 * math.sin(1.3 * t)
 
 
 def arming_flight(path, *, home_position=True, seconds=40.0):
@@ -41,7 +42,7 @@ def arming_flight(path, *, home_position=True, seconds=40.0):
     k = 0
     while k * 0.25 < seconds:
         t = k * 0.25
-        f.fly(t, t + 0.25, height_fn=height, ground_msl_m=GROUND_MSL_M, range_hz=0)
+        f.fly(t, t + 0.25, height_fn=height, ground_msl_m=GROUND_MSL_M, range_hz=0, imu_follows_height=True)
         t1 = t + 0.24
         home = STALE_HOME_MSL_M if t1 < ARM_S else GROUND_MSL_M
         alt = GROUND_MSL_M + height(t1)

@@ -108,8 +108,12 @@ class FlightLog:
         return self.put(self.mav.system_time_encode(unix_us, self.ms(t)), t, **kw)
 
     def fly(self, t0, t1, *, height_fn=lambda t: 0.0, ground_msl_m=500.0, imu_hz=100, att_hz=50, baro_hz=20,
-            gps_hz=5, range_hz=10, hb_hz=1, roll=0.0, pitch=0.0, imu="highres", gps_fix=3):
-        """Regular streams from ``t0`` to ``t1`` (vehicle time base 100 Hz tick)."""
+            gps_hz=5, range_hz=10, hb_hz=1, roll=0.0, pitch=0.0, imu="highres", gps_fix=3,
+            imu_follows_height=False):
+        """Regular streams from ``t0`` to ``t1`` (vehicle time base 100 Hz tick).
+        ``imu_follows_height``: the (level) HIGHRES_IMU carries the vertical
+        acceleration of ``height_fn`` (its second difference at the IMU tick), so
+        the INS agrees with the baro; otherwise it reads 1 g still."""
         k0, k1 = int(round(t0 * 100)), int(round(t1 * 100))
         for k in range(k0, k1):
             t = k / 100.0
@@ -119,7 +123,11 @@ class FlightLog:
             if att_hz and k % int(100 / att_hz) == 0:
                 self.attitude(t, roll, pitch, 0.1)
             if imu_hz and k % int(100 / imu_hz) == 0:
-                if imu == "highres":
+                if imu == "highres" and imu_follows_height:
+                    d = 1.0 / imu_hz
+                    acc = (height_fn(t + d) - 2.0 * h + height_fn(t - d)) / (d * d)
+                    self.highres(t, f_b=(0.0, 0.0, -9.80665 - acc))
+                elif imu == "highres":
                     self.highres(t)
                 elif imu == "raw":
                     self.raw_imu(t)
