@@ -30,14 +30,7 @@ import numpy as np
 
 from .channel import (AUX_GB, CHANNELS, GB, N_STATES, ChannelState, EpochInputs, Model, _check_finite, fix_height,
                       gnss_gauss_markov, initial_state)
-
-try:  # numba is a dependency; the kernel also runs (slowly) as plain Python.
-    from numba import njit
-except ImportError:  # pragma: no cover
-    def njit(*args, **kwargs):
-        if args and callable(args[0]):
-            return args[0]
-        return lambda f: f
+from .jit import njit
 
 N_CH = len(CHANNELS)
 GNSS, RNG, BARO = 0, 1, 2

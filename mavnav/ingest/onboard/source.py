@@ -46,6 +46,7 @@ import numpy as np
 from ...atmosphere import heights_from_pressures_m
 from ...config import IngestConfig
 from ...errors import InputError
+from ...jit import njit
 from ...samples import (
     AutopilotHeight,
     BaroHeight,
@@ -69,14 +70,6 @@ ULOG_MAGIC = b"ULog\x01\x12\x35"
 _IMU, _BARO, _GNSS, _RANGE, _RANGE_REJ, _AP, _IMU_REJ = range(7)
 _KIND = {_IMU: "imu", _BARO: "baro", _GNSS: "gnss", _RANGE: "range", _AP: "autopilot"}  # samples, not events
 _VERDICT = {1: "duplicate", 2: "out_of_order"}
-
-try:  # numba is a dependency; without it the kernel runs (slowly) as plain Python
-    from numba import njit
-except ImportError:  # pragma: no cover
-    def njit(*args, **kwargs):
-        if args and callable(args[0]):
-            return args[0]
-        return lambda f: f
 
 
 def detect_onboard(head: bytes) -> Optional[str]:

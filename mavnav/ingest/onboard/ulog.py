@@ -78,15 +78,8 @@ from typing import Callable, Dict, List, Optional, Tuple
 import numpy as np
 
 from ...errors import InputError
+from ...jit import njit
 from .head import read_head
-
-try:  # numba is a dependency; without it the walk runs (slowly) as plain Python
-    from numba import njit
-except ImportError:  # pragma: no cover
-    def njit(*args, **kwargs):
-        if args and callable(args[0]):
-            return args[0]
-        return lambda f: f
 from .record import (
     AttitudeSeries,
     AutopilotSeries,
