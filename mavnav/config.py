@@ -297,8 +297,9 @@ class MonitorConfig(_Section):
     range_envelope_min_refused: int = Field(5, ge=1)
     range_envelope_frac: float = Field(0.2, gt=0, le=1)
     # A baro sample past the jump gate is a step only if the baro stays there:
-    # the innovations from the jump on must keep this fraction of it for at
-    # least this long and this many samples (a spike of prop wash returns).
+    # after this long and this many samples it must still sit this fraction of
+    # the jump away from the clean samples before it, carried by the INS (a
+    # spike of prop wash returns).
     baro_jump_confirm_s: float = Field(0.5, ge=0)
     baro_jump_confirm_samples: int = Field(2, ge=1)
     baro_jump_stay_frac: float = Field(0.5, gt=0, le=1)

@@ -133,8 +133,6 @@ class HypothesisLogic:
         self.last_feedback_us = t_us
         self.baro_white_var = 0.0
         self.dv_var = 0.0
-        self.baro_jump_sigma = math.nan
-        self.baro_jump_m = 0.0
         self.envelope_failing = False
         self.last_r_m = {"gnss": 0.0, "rangefinder": 0.0}
         self.r_avg_m = {"gnss": 0.0, "rangefinder": 0.0}
@@ -152,8 +150,7 @@ class HypothesisLogic:
         self.before_jump: deque = deque(maxlen=64)  # clean baro samples: (t, b, ins pos, ins vel, V)
         # the same offset at every clean sample (against the samples a confirm
         # time before it): its measured scatter is what a step must beat
-        self.offset_scale = ResidualScale(m.residual_scale_tau_s, 0.0, math.inf, max_phi=0.0)
-        self.offset_scale.m2 = 0.0
+        self.offset_scale = ResidualScale(m.residual_scale_tau_s, 0.0, math.inf, max_phi=0.0, prior_m2=0.0)
         self.baro_judged: Optional[tuple] = None  # this epoch's baro row: (r, sd, rejected)
         self.jump_confirmed: Optional[tuple] = None  # (t, cum_m, sigma)
 
@@ -205,8 +202,6 @@ class HypothesisLogic:
                     self.rejections["baro_ins"].push(t, nu2, reject)
                     self.baro_judged = (r, math.sqrt(S), reject)
                 if reject:
-                    self.baro_jump_sigma = math.sqrt(nu2)
-                    self.baro_jump_m = r
                     changes["baro_restart"] = True  # no baro row anywhere; differencing restarts
             else:
                 self.jump = None  # the differencing restarted

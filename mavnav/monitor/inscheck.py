@@ -82,7 +82,7 @@ class InsBaroCheck:
         a0 = s[1] - u[1] - u[2] * D0
         ins = a1 - r * a0 + (s[2] - u[2]) * D1
         da, pdd = s[4], s[5]
-        ins -= 0.5 * da * (D1 * D1 + r * D0 * D0) + da * D0 * D1 * 0.0 + da * D0 * D1
+        ins -= 0.5 * da * (D1 * D1 + r * D0 * D0) + da * D0 * D1
         e = (t[3] - s[3]) - r * (s[3] - u[3]) - ins
         k = 0.5 * (D1 * D1 + r * D0 * D0) + D0 * D1
         var = ((1.0 + (1.0 + r) ** 2 + r * r) * white_var_m2 + k * k * pdd

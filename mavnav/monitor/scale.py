@@ -28,12 +28,12 @@ import math
 class ResidualScale:
     __slots__ = ("tau_s", "lo", "hi", "max_phi", "m2", "c1", "prev", "last_us")
 
-    def __init__(self, tau_s: float, lo: float, hi: float, max_phi: float = 0.95):
+    def __init__(self, tau_s: float, lo: float, hi: float, max_phi: float = 0.95, prior_m2: float = 1.0):
         self.tau_s = tau_s
         self.lo = lo
         self.hi = hi
         self.max_phi = max_phi
-        self.m2 = 1.0  # E[z^2]
+        self.m2 = prior_m2  # E[z^2]; 1: the model's own scale
         self.c1 = 0.0  # E[z_t z_{t-1}]
         self.prev = math.nan
         self.last_us = None
