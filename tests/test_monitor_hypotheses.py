@@ -100,7 +100,10 @@ def test_with_the_baro_excluded_the_ins_still_shares_the_blame():
     """Excluding baro_ins takes the baro out, not the INS: a drift of one aux
     channel running on the INS alone cannot be pinned on that aux sensor
     until the other channel clears the INS."""
-    live = frozenset((G, R, I))  # baro_ins excluded
+    from mavnav.monitor.verdict import live_hypotheses
+
+    live = live_hypotheses({"baro_ins"})
+    assert live == frozenset((G, R, I))
     assert judge([fail(G, I)], live=live).situation == "ambiguous"
     assert judge([fail(G, I), clear(R, I)], live=live).situation == "isolated"
 

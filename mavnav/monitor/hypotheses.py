@@ -55,7 +55,7 @@ from .rawcheck import RawAuxCheck
 from .scale import ResidualScale
 from .table import Judgement, judge
 from .tracker import SourceTracker
-from .verdict import HYPOTHESES, REPORT_SOURCE, SENSOR_SOURCES, Verdict
+from .verdict import SENSOR_SOURCES, Verdict, live_hypotheses
 from .window import InnovationWindow
 
 AUX = ((GNSS, "gnss"), (RNG, "rangefinder"))
@@ -531,9 +531,7 @@ class HypothesisLogic:
         verdicts = [v for v in (self._aux_verdict(GNSS, "gnss", t), self._aux_verdict(RNG, "rangefinder", t),
                                 self._ins_verdict(t), self._raw_verdict(), envelope)
                     if v is not None] + self._level_verdicts(t)
-        # excluding baro_ins takes the baro out; the INS still drives every channel,
-        # so it stays a hypothesis
-        live = frozenset(h for h in HYPOTHESES if h == "ins" or REPORT_SOURCE[h] not in self.excluded)
+        live = live_hypotheses(self.excluded)
         j = judge(verdicts, live) if self.f.isolation_2of3 else self._paper_judge(verdicts, live)
         self.judgement = j
         events = []

@@ -44,5 +44,12 @@ class Verdict:
         return self.level == "fail"
 
 
+def live_hypotheses(excluded) -> frozenset:
+    """The hypotheses still in play with these report sources excluded.
+    Excluding ``baro_ins`` takes the baro out; the INS still drives every
+    channel, so it stays a hypothesis."""
+    return frozenset(h for h in HYPOTHESES if h == "ins" or REPORT_SOURCE[h] not in excluded)
+
+
 def report_sources(hyps) -> frozenset:
     return frozenset(REPORT_SOURCE[h] for h in hyps)
