@@ -22,6 +22,7 @@ from typing import Iterable, Optional, Sequence
 from .config import Config
 from .errors import MavnavError
 from .ingest import open_log
+from .ingest.vehicle_class import notice_text
 from .pipeline import run
 from .report import SOURCES, AlarmEvent, EpochReport, RunSummary
 from .samples import BaroHeight, GnssHeight, RangeHeight, SpecificForceUp
@@ -99,6 +100,9 @@ class AuditSink(Sink):
 
 def _notes(result: dict, sink: AuditSink, cfg: Config, stats) -> list[str]:
     notes = [f"log damaged: {d}" for d in stats.damage]
+    if stats.not_applicable:
+        # the model does not fit this vehicle: that is the whole story
+        return notes + [notice_text(stats.not_applicable)]
     for kind, ok in result["inputs"]["supports_time_to_alarm"].items():
         rate = result["inputs"]["rates_hz"][kind]
         if rate == 0:
@@ -148,6 +152,7 @@ def audit_file(path: str | Path, cfg: Config, sysid: Optional[int] = None,
             "time_to_alarm_s": cfg.monitor.time_to_alarm_s,
         },
         "sink_failures": summary.sink_failures,
+        "height_integrity_applies": not stats.not_applicable,
         "ingest": stats.to_dict(),
     }
     if faults:

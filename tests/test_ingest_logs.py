@@ -26,7 +26,7 @@ REBOOT_JUMP_MS = 2000
 def independent_counts(path: Path) -> dict:
     """Valid measurements per kind, by pymavlink, with the rules of the normaliser."""
     m = mavutil.mavlink_connection(str(path), robust_parsing=True)
-    sysid = ap_comp = autopilot = None
+    sysid = ap_comp = autopilot = mav_type = None
     msgs = []
     while True:
         msg = m.recv_msg()
@@ -38,6 +38,7 @@ def independent_counts(path: Path) -> dict:
         if sysid is None:
             if t == "HEARTBEAT" and msg.autopilot != 8 and msg.type != 6:
                 sysid, ap_comp, autopilot = msg.get_srcSystem(), msg.get_srcComponent(), msg.autopilot
+                mav_type = msg.type
             else:
                 msgs.append(msg)  # held until the vehicle is known, as the source does
                 continue
@@ -88,6 +89,9 @@ def independent_counts(path: Path) -> dict:
             accept("autopilot", x.time_boot_ms)
             if x.lat != 0 or x.lon != 0:  # with a position: an altitude MSL
                 accept("autopilot_msl", x.time_boot_ms)
+    if mav_type in (11, 12):  # a surface vessel or a submarine: no height samples (vehicle_class)
+        for kind in ("baro", "gnss", "range"):
+            counts[kind] = 0
     return counts, imu_type, range_type
 
 

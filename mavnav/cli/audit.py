@@ -48,7 +48,8 @@ def format_table(r: dict) -> str:
     used = av["channels_used"]
     lines.append("  channels used: " + ", ".join(f"{k} {100 * v:.0f}%" for k, v in used.items()))
     ov = av["overall"]
-    lines.append("  overall: " + ", ".join(f"{k} {100 * v:.1f}%" for k, v in ov.items() if v > 0))
+    lines.append("  overall: " + (", ".join(f"{k} {100 * v:.1f}%" for k, v in ov.items() if v > 0)
+                                  or ("not applicable" if not r.get("height_integrity_applies", True) else "no epochs")))
     rms = r["fused_vs_autopilot_rms_m"]
     lines.append(f"  fused vs autopilot height: " + (f"RMS {rms:.2f} m, max {r['fused_vs_autopilot_max_m']:.2f} m"
                                                      if rms is not None else "no autopilot height"))

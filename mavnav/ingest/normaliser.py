@@ -113,6 +113,7 @@ from .clock import HOLD, UNIX_THRESHOLD_US, StreamClocks, VehicleClock
 from .references import ReferenceResolver
 from .stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
 from .streams import KindGuard, SourceSelector
+from .vehicle_class import is_height_input, not_applicable_reason, notice_text
 
 G0_MPS2 = 9.80665
 MILLI_G_MPS2 = G0_MPS2 / 1000.0
@@ -174,6 +175,7 @@ class Normaliser:
         self.sysid = sysid
         self.link_name = link_name
         self._asked = sysid is not None
+        self._not_applicable: Optional[str] = None  # why height integrity does not apply (vehicle_class)
         self._others: dict = {}  # other systems heard: sysid -> [frames, description or None, said]
         self._wait_hb_t0: Optional[float] = None  # receive time of the first tick (live)
         self._wait_hb_next: Optional[float] = None
@@ -336,6 +338,10 @@ class Normaliser:
             self._emit(Notice(recv_s, "vehicle", f"monitoring system {self.sysid} "
                                                  f"({describe_system(f['type'], f['autopilot'])}, component {compid}) "
                                                  f"on {self.link_name}: {why}"))
+            self._not_applicable = not_applicable_reason(mav_type=f["type"])
+            if self._not_applicable:
+                self.stats.not_applicable = self._not_applicable
+                self._emit(Notice(recv_s, "not_applicable", notice_text(self._not_applicable)))
             self._others.pop(self.sysid, None)  # heard before it was chosen
             for sid in sorted(self._others):
                 self._say_ignored(recv_s, sid, final=True)
@@ -1092,6 +1098,9 @@ class Normaliser:
         return True
 
     def _yield(self, kind: str, sample) -> None:
+        if self._not_applicable and is_height_input(sample):
+            self.stats.filtered["vehicle_class"] += 1
+            return
         self.stats.samples[kind] += 1
         if kind not in GATED or (self._imu_out and not self._pre_imu):
             self.out.append(sample)
@@ -1131,6 +1140,9 @@ class Normaliser:
             self._yield(kind, sample)
 
     def _emit(self, event) -> None:
+        if self._not_applicable and is_height_input(event):
+            self.stats.filtered["vehicle_class"] += 1
+            return
         self.stats.events[type(event).__name__] += 1
         self.out.append(event)
 

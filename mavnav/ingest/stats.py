@@ -75,6 +75,7 @@ class IngestStats:
     format: str = "tlog"  # "tlog", "live", "dataflash", "ulog"
     firmware: str = ""  # onboard logs: e.g. "ArduCopter V4.1.3", "PX4 v1.14.0"
     vehicle_kind: str = ""  # onboard logs: "copter", "plane", "rover", "sub", ...
+    not_applicable: str = ""  # why height integrity does not apply to this vehicle (vehicle_class), "" if it does
     damage: List[str] = field(default_factory=list)  # onboard logs: what could not be read, in words
     missing: List[str] = field(default_factory=list)  # onboard logs: sensors the log lacks
 

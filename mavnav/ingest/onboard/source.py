@@ -52,12 +52,14 @@ from ...samples import (
     BaroHeight,
     Gap,
     GnssHeight,
+    Notice,
     RangeHeight,
     ReferenceSet,
     Rejected,
     SpecificForceUp,
 )
 from ..stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
+from ..vehicle_class import not_applicable_reason, notice_text
 from .head import read_head
 from .record import OnboardRecord
 
@@ -266,10 +268,13 @@ class _Builder:
         st.format = rec.format
         st.firmware = rec.firmware
         st.vehicle_kind = rec.vehicle
+        st.not_applicable = not_applicable_reason(kind=rec.vehicle) or ""
         self._imu()
-        baro = self._baro()
-        ref = self._gnss()
-        self._range(baro)
+        ref = None
+        if not st.not_applicable:
+            baro = self._baro()
+            ref = self._gnss()
+            self._range(baro)
         self._autopilot(ref)
         st.messages = dict(sorted(rec.messages.items()))
         st.bytes_read = rec.bytes_read
@@ -296,6 +301,9 @@ class _Builder:
         dur = st.duration_s
         st.rates_hz = {k: (v / dur if dur > 0 else 0.0) for k, v in st.messages.items()}
         by_tag = {c[1]: [a.tolist() if hasattr(a, "tolist") else a for a in c] for c in self.cols}
+        if st.not_applicable:
+            st.events["Notice"] += 1
+            yield Notice(t0 * 1e-6, "not_applicable", notice_text(st.not_applicable))
         yield from self.refs
         st.events["ReferenceSet"] += len(self.refs)
         imu_name = rec.imu.name if rec.imu is not None else ""
