@@ -220,6 +220,7 @@ class AdaptiveFeatures(_Section):
     validated_feedback: bool = True  # feed back only channels validated over a window, rate-limited
     readmission: bool = True  # readmit an excluded source after it has been consistent for readmit_s
     inverse_variance: bool = True  # fuse by inverse (co)variance, else the arithmetic mean
+    kink_isolation: bool = True  # an aux-baro drift pinned on whichever bent against the INS (monitor/kink.py)
 
 
 class MonitorConfig(_Section):
@@ -289,6 +290,21 @@ class MonitorConfig(_Section):
     # from the baro+INS channel when the sensor returns (it never gates out its
     # own sensor after coasting, and a rangefinder back in range finds its ground).
     coast_reinit_s: float = Field(3.0, gt=0)
+    # Ramp onset against the INS (mavnav/monitor/kink.py): over this window, a
+    # kink of aux - baro with |z| past kink_min_z (its onset) is pinned on the
+    # aux sensor or the baro by whose height bent against the INS, when their
+    # squared kink z differ by more than chi2_gate(kink_isolation_prob). The kink
+    # scatter is measured every kink_learn_interval_s at an onset a third of the
+    # window back while the monitor is clear (time constant kink_learn_tau_s),
+    # and the test acts only after kink_min_learned such measurements.
+    kink_window_s: float = Field(30.0, gt=0)
+    kink_min_pre_s: float = Field(5.0, gt=0)
+    kink_min_post_s: float = Field(1.0, gt=0)
+    kink_min_z: float = Field(0.0, ge=0)
+    kink_isolation_prob: float = Field(1e-5, gt=0, lt=0.5)
+    kink_learn_interval_s: float = Field(1.0, gt=0)
+    kink_learn_tau_s: float = Field(120.0, gt=0)
+    kink_min_learned: int = Field(30, ge=2)
     # Rangefinder envelope: readings refused below its minimum (or above its
     # maximum) while the other sources put the vehicle more than margin inside
     # its range, for most of a window, are a rangefinder failure.

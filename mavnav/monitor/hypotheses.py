@@ -50,6 +50,7 @@ from .cusum import Cusum, threshold_for
 from .decision import Decision, diff_sigmas, pair_reports
 from .fusion import fuse_heights
 from .inscheck import InsBaroCheck
+from .kink import KinkSeries, MeanSquare, isolate, kink_fit, onsets
 from .levels import chi2_gate, normal_k
 from .rawcheck import RawAuxCheck
 from .scale import ResidualScale
@@ -98,6 +99,7 @@ class HypothesisLogic:
         self.stale_baro_us = int(m.stale_baro_s * 1e6)
         self.coast_us = int(m.coast_reinit_s * 1e6)
         self.warmup_us = int(m.warmup_s * 1e6)
+        self.kink_margin = chi2_gate(m.kink_isolation_prob)
         self.t0_us = 0
         self._h_cache: dict[int, float] = {}
 
@@ -153,6 +155,12 @@ class HypothesisLogic:
         self.offset_scale = ResidualScale(m.residual_scale_tau_s, 0.0, math.inf, max_phi=0.0, prior_m2=0.0)
         self.baro_judged: Optional[tuple] = None  # this epoch's baro row: (r, sd, rejected)
         self.jump_confirmed: Optional[tuple] = None  # (t, cum_m, sigma)
+        # ramp onsets against the INS: the series, and each one's measured kink scatter
+        keys = ("gnss-baro", "gnss-ins", "rangefinder-baro", "rangefinder-ins", "baro-ins")
+        self.kink = {k: KinkSeries(m.kink_window_s) for k in keys}
+        self.kink_sd = {k: MeanSquare(m.kink_learn_tau_s) for k in keys}
+        self.kink_learned_s = -math.inf
+        self.baro_minus_ins_m = math.nan
 
     # ------------------------------------------------------------------ refused readings
 
@@ -438,9 +446,12 @@ class HypothesisLogic:
             if abs(r) > self.m.suspect_frac * thr:
                 out.append(Verdict(test, "suspect", implicates, stat=abs(r), threshold=thr, text=txt))
             else:
-                # a pass clears the baro only: the channel's height may be holding off
-                # a faulty aux sensor by gating it
-                clear = frozenset(("baro",)) if abs(r) < self.m.clear_frac * thr else frozenset()
+                # a pass clears the baro only, and only while the channel's level is
+                # held by its own sensor: a channel gating out its sensor coasts on
+                # the baro, and its level then follows a baro ramp
+                held = (self.rejections[name].rejected == 0
+                        and self.cusum[name].stat < self.m.clear_frac * self._h(name))
+                clear = frozenset(("baro",)) if abs(r) < self.m.clear_frac * thr and held else frozenset()
                 # scale: the threshold, not less the statistic: the channel's own height
                 # follows a slow baro error in part, so the margin overstates the power
                 # a baro fault of size X would read about X here: faults beyond the
@@ -497,6 +508,96 @@ class HypothesisLogic:
                                                                               # the accepted ones clears them
         return None
 
+    # ------------------------------------------------------------------ ramp onsets
+
+    def _push_kinks(self, t: int, baro_m: Optional[float]) -> None:
+        """Each height against the INS's chained position, and each aux height
+        against the baro carried to its time by the INS; every
+        ``kink_learn_interval_s`` while the monitor is clear, each series' kink
+        scatter at an onset a third of the window back."""
+        m = self.m
+        ts = t * 1e-6
+        pos = self.ins.pos_m
+        if baro_m is not None:
+            if ts - self.kink["baro-ins"].t[-1] > m.stale_baro_s if self.kink["baro-ins"].t else False:
+                for ser in self.kink.values():
+                    ser.clear()  # the INS chain across a baro gap is no reference
+            self.baro_minus_ins_m = baro_m - pos
+            self.kink["baro-ins"].push(ts, self.baro_minus_ins_m)
+        for c, name in AUX:
+            raw = self.pending_raw[c]
+            if raw is None:
+                continue
+            x = raw[0] - pos
+            self.kink[f"{name}-ins"].push(ts, x)
+            if self.baro_minus_ins_m == self.baro_minus_ins_m:
+                self.kink[f"{name}-baro"].push(ts, x - self.baro_minus_ins_m)
+        if ts - self.kink_learned_s < m.kink_learn_interval_s or self.judgement.situation != "clear" or self.jump:
+            return
+        self.kink_learned_s = ts
+        for key, ser in self.kink.items():
+            s, y = ser.arrays(ts)
+            if s.size < 8 or s[0] > -0.7 * m.kink_window_s:
+                continue
+            num, den = kink_fit(s, y, np.array([-m.kink_window_s / 3.0]), quadratic=key.endswith("-ins"))
+            if den[0] > 0:
+                self.kink_sd[key].push(ts, float(num[0]) / math.sqrt(float(den[0])))
+
+    def _kink(self, key: str, ts: float, tau: float) -> Optional[tuple[float, float]]:
+        """A series' kink slope at onset ``tau`` and its standard deviation."""
+        s, y = self.kink[key].arrays(ts)
+        if s.size < 8 or s[0] > tau - self.m.kink_min_pre_s:
+            return None
+        num, den = kink_fit(s, y, np.array([tau]), quadratic=key.endswith("-ins"))
+        if not den[0] > 0:
+            return None
+        return float(num[0] / den[0]), self.kink_sd[key].sd / math.sqrt(float(den[0]))
+
+    def _kink_verdicts(self, t: int, aux, verdicts) -> list[Verdict]:
+        """For an aux test that implicates its sensor and the baro: which of the
+        two bent against the INS (a pass that rules the other out), if the
+        flight's own kink scatter lets the INS tell."""
+        m = self.m
+        out = []
+        if "baro_ins" in self.excluded:
+            return out
+        ts = t * 1e-6
+        for v, (c, name) in zip(aux, AUX):
+            if v is None or v.level == "pass" or "baro" not in v.implicates:
+                continue
+            keys = (f"{name}-baro", f"{name}-ins", "baro-ins")
+            if any(self.kink_sd[k].n < m.kink_min_learned for k in keys):
+                continue
+            s, y = self.kink[keys[0]].arrays(ts)
+            if s.size < 8 or s[0] > -0.7 * m.kink_window_s:
+                continue
+            taus = onsets(s, m.kink_min_pre_s, m.kink_min_post_s)
+            if taus.size == 0:
+                continue
+            num, den = kink_fit(s, y, taus, quadratic=False)
+            good = den > 0
+            if not good.any():
+                continue
+            sd_ab = self.kink_sd[keys[0]].sd
+            z = np.where(good, num / np.sqrt(np.where(good, den, 1.0)), 0.0) / sd_ab
+            j = int(np.argmax(np.abs(z)))
+            if abs(z[j]) < m.kink_min_z:
+                continue  # no kink to explain
+            tau, a = float(taus[j]), float(num[j] / den[j])
+            k_aux, k_baro = self._kink(keys[1], ts, tau), self._kink(keys[2], ts, tau)
+            if k_aux is None or k_baro is None:
+                continue
+            d = isolate(a, *k_aux, *k_baro)
+            if abs(d) < self.kink_margin:
+                continue
+            bent, kept = (name, "baro") if d > 0 else ("baro", name)
+            out.append(Verdict(f"{name} ramp onset", "pass", frozenset((name, "baro")), frozenset((kept,)),
+                               abs(d), self.kink_margin,
+                               text=f"{LABEL.get(bent, bent)} bent {-tau:.1f} s ago against the INS "
+                                    f"({a:+.2f} m/s between {LABEL[name]} and baro; {LABEL[name]}-INS "
+                                    f"{k_aux[0]:+.2f}, baro-INS {k_baro[0]:+.2f} m/s)", scale_m=0.0))
+        return out
+
     # ------------------------------------------------------------------ after the step
 
     def _available(self, t: int) -> tuple[bool, bool, bool]:
@@ -517,6 +618,8 @@ class HypothesisLogic:
             w.expire(t)
         self.raw_check.push(t, self.pending_raw[GNSS], self.pending_raw[RNG])
         self.ins.push(t, ep.dt_s, ep.dp_m, ep.dv_mps, ep.baro_m, bank.x[BARO], bank.P[BARO])
+        if self.f.kink_isolation:
+            self._push_kinks(t, ep.baro_m)
         if self.baro_judged is not None:
             self._track_jump(t, ep.baro_m, *self.baro_judged)
             self.baro_judged = None
@@ -528,9 +631,11 @@ class HypothesisLogic:
         self.envelope_failing = envelope is not None  # also holds back the rangefinder's readmission
         if "rangefinder" in self.excluded:
             envelope = None
-        verdicts = [v for v in (self._aux_verdict(GNSS, "gnss", t), self._aux_verdict(RNG, "rangefinder", t),
-                                self._ins_verdict(t), self._raw_verdict(), envelope)
+        aux = (self._aux_verdict(GNSS, "gnss", t), self._aux_verdict(RNG, "rangefinder", t))
+        verdicts = [v for v in (*aux, self._ins_verdict(t), self._raw_verdict(), envelope)
                     if v is not None] + self._level_verdicts(t)
+        if self.f.kink_isolation:
+            verdicts += self._kink_verdicts(t, aux, verdicts)
         live = live_hypotheses(self.excluded)
         j = judge(verdicts, live) if self.f.isolation_2of3 else self._paper_judge(verdicts, live)
         self.judgement = j
@@ -613,8 +718,19 @@ class HypothesisLogic:
         self.excluded.add(name)
         self.consistent_since[name] = None
         if name == "baro_ins":
-            # a faulty baro is taken out of every aux channel, not only the fusion
+            # a faulty baro is taken out of every aux channel, not only the fusion;
+            # what those channels took from it before (a level, a velocity) is
+            # opened up so their own sensors set it again, and their tests start over
             self.bank.baro_on[GNSS] = self.bank.baro_on[RNG] = False
+            for c, aux in AUX:
+                if aux in self.excluded:
+                    continue
+                self.bank.P[c, 0, 0] += self.m.max_channel_sigma_m ** 2
+                self.bank.P[c, 1, 1] += self.m.max_channel_sigma_m ** 2 / max(self.m.coast_reinit_s, 1.0) ** 2
+                self.cusum[aux].clear()
+                self.rejections[aux].clear()
+                self.scale[aux].gap()
+                self.warm_until[aux] = t + self.warmup_us
         else:
             self.cusum[name].clear()
             self.rejections[name].clear()
