@@ -386,11 +386,13 @@ class _Collect(Sink):
         self.t: List[float] = []
         self.h: List[float] = []
         self.overall: List[str] = []
+        self.pl: List[float] = []
 
     def epoch(self, r) -> None:
         self.t.append(r.t_us * 1e-6)
         self.h.append(r.height_fused_m)
         self.overall.append(r.overall)
+        self.pl.append(r.vpl_m)
 
 
 def run_contenders(samples: list, sensors: SensorsConfig, names: Sequence[str], bcfg: BaselineConfig) -> Dict[str, dict]:
@@ -404,7 +406,7 @@ def run_contenders(samples: list, sensors: SensorsConfig, names: Sequence[str], 
         sink = _Collect()
         summary = run(samples, cfg, [sink])
         out[name] = {"t": np.asarray(sink.t), "h": np.asarray(sink.h, dtype=float), "overall": sink.overall,
-                     "alarms": list(summary.alarms)}
+                     "pl": np.asarray(sink.pl, dtype=float), "alarms": list(summary.alarms)}
     return out
 
 
@@ -470,6 +472,8 @@ def job(spec: dict) -> RunResult:
                           expected=expected, allowed=fam.allowed, hazard_m=HAZARD_M)
         d = asdict(sc)
         d["right"], d["hazardous"] = sc.right, sc.hazardous
+        d["misleading_s"], d["usable_s"] = (sm.misleading(o["t"], o["h"], o["pl"], o["overall"], t_truth, h_truth)
+                                            if o.get("pl") is not None else (math.nan, math.nan))
         r.scores[name] = d
         r.alarms[name] = [(round(a.t_s, 3), a.source, a.previous, a.state, a.reason)
                           for a in sm.alarm_onsets(o["alarms"])]
@@ -521,6 +525,8 @@ def aggregate(rows: List[RunResult], name: str, fam: Family) -> dict:
         "false_alarms": sum(s["false_alarms"] for s in sc),
         "available_pct": 100.0 * float(np.mean(avail)) if avail else math.nan,
         "right": sum(1 for s in sc if s["right"]),
+        "misleading_s": float(sum(s.get("misleading_s", 0.0) for s in sc if s.get("misleading_s") == s.get("misleading_s"))),
+        "usable_s": float(sum(s.get("usable_s", 0.0) for s in sc if s.get("usable_s") == s.get("usable_s"))),
         "alarmed_runs_by_source": dict(sorted(alarmed.items())),
     }
 
@@ -560,8 +566,9 @@ def totals_table(all_aggs: Dict[str, Dict[str, dict]], names: Sequence[str]) -> 
         lines.append(f"| {fam} | " + " | ".join(f"{aggs[n]['right']}/{aggs[n]['runs']}" for n in names) + " |")
     lines.append("")
     lines.append("| contender | families all right | runs right | fault runs detected | isolated / detected "
-                 "| TTA ≤ 1 s | wrong-exclusion runs | hazardous runs (s) | false alarms |")
-    lines.append("|---|---|---|---|---|---|---|---|---|")
+                 "| TTA ≤ 1 s | wrong-exclusion runs | hazardous runs (s) | false alarms "
+                 "| error beyond the protection level (s of usable s) |")
+    lines.append("|---|---|---|---|---|---|---|---|---|---|")
     for n in names:
         A = [aggs[n] for aggs in all_aggs.values()]
         fa = [a for a in A if a["fault"]]
@@ -573,7 +580,8 @@ def totals_table(all_aggs: Dict[str, Dict[str, dict]], names: Sequence[str]) -> 
             f"{sum(a['tta_within_1s'] for a in fa)}/{sum(a['runs'] for a in fa)} | "
             f"{sum(a['wrong_exclusion_runs'] for a in A)} | "
             f"{sum(a['hazardous_runs'] for a in A)} ({fmt(sum(a['hazardous_s'] for a in A), 1)}) | "
-            f"{sum(a['false_alarms'] for a in A)} |")
+            f"{sum(a['false_alarms'] for a in A)} | "
+            f"{fmt(sum(a['misleading_s'] for a in A), 1)} of {fmt(sum(a['usable_s'] for a in A), 0)} |")
     return lines
 
 

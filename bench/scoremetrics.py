@@ -303,3 +303,22 @@ def score_run(alarms: Sequence, t_est: Sequence[float], h_est: Sequence[float], 
     return RunScore(fault=fault, detected=detected, tta_s=tta, isolated=isolated, blamed=blamed,
                     wrong_exclusions=wrong, false_alarms=fa, hazardous_s=haz_s, max_usable_error_m=max_err,
                     available_frac=avail_s / span_s if span_s > 0 else math.nan, alarmed=alarmed)
+
+
+def misleading(t_est: Sequence[float], h_est: Sequence[float], pl_m: Sequence[float], overall: Sequence[str],
+               t_truth: Sequence[float], h_truth: Sequence[float], max_hold_s: float = 0.5) -> Tuple[float, float]:
+    """Does the protection level bound the error? ``(misleading_s, usable_s)``:
+    the time the output was offered as usable (nominal or caution, finite
+    height and level) with its error beyond its own protection level, and the
+    usable time it is out of (truth interpolated, only inside its span; each
+    epoch counts until the next, at most ``max_hold_s``)."""
+    t = np.asarray(t_est, dtype=float)
+    if t.size == 0 or len(t_truth) == 0:
+        return 0.0, 0.0
+    h, pl = np.asarray(h_est, dtype=float), np.asarray(pl_m, dtype=float)
+    tt, ht = np.asarray(t_truth, dtype=float), np.asarray(h_truth, dtype=float)
+    dt = np.maximum(np.minimum(np.diff(t, append=t[-1]), max_hold_s), 0.0)
+    usable = (np.isfinite(h) & np.isfinite(pl) & (t >= tt[0]) & (t <= tt[-1])
+              & np.isin(np.asarray(overall, dtype=object), USABLE_STATES))
+    err = np.abs(h - np.interp(t, tt, ht))
+    return float(dt[usable & (err > pl)].sum()), float(dt[usable].sum())

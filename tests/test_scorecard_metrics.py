@@ -292,3 +292,17 @@ def test_integrity_job_scores_every_contender():
     assert set(r.scores) == {"adaptive", "baseline"} and r.note == "2 Hz" and r.span_s > 50.0
     for s in r.scores.values():
         assert not s["fault"] and 0.0 <= s["available_frac"] <= 1.0
+
+
+def test_misleading_counts_error_beyond_the_protection_level_hand_checked():
+    t = [0.0, 0.1, 0.2, 0.3, 0.4]
+    truth_t, truth_h = [0.0, 1.0], [10.0, 10.0]
+    h = [10.0, 12.0, 13.0, 10.5, math.nan]
+    pl = [1.0, 1.0, 4.0, 1.0, 1.0]
+    overall = ["nominal", "caution", "nominal", "unavailable", "nominal"]
+    # epoch 1: error 2 > 1, usable: 0.1 s; epoch 2: 3 < 4; epoch 3 not offered; epoch 4 no height
+    bad, usable = sm.misleading(t, h, pl, overall, truth_t, truth_h)
+    assert bad == pytest.approx(0.1) and usable == pytest.approx(0.3)
+    # an infinite protection level bounds everything; nothing offered, nothing misleading
+    assert sm.misleading(t, h, [math.inf] * 5, overall, truth_t, truth_h)[0] == 0.0
+    assert sm.misleading(t, h, pl, ["unavailable"] * 5, truth_t, truth_h) == (0.0, 0.0)
