@@ -192,6 +192,13 @@ class IngestConfig(_Section):
     rangefinder_max_tilt_deg: float = Field(60.0, gt=0, lt=90)
     # Stuck = rangefinder_stuck_s of identical readings while the baro height moves this much.
     rangefinder_stuck_min_move_m: float = Field(1.0, gt=0)
+    # ArduPilot sends its downward rangefinder twice (DISTANCE_SENSOR and
+    # RANGEFINDER): a reading of the chosen one that differs from the other's,
+    # received within range_cross_max_age_s, by more than range_cross_tol_m or
+    # range_cross_tol_frac of the larger is refused ("disagrees").
+    range_cross_max_age_s: float = Field(0.3, gt=0)
+    range_cross_tol_m: float = Field(0.1, ge=0)
+    range_cross_tol_frac: float = Field(0.05, ge=0)
     # A stream is in a gap when silent longer than max(gap_min_s, gap_factor * its usual interval).
     gap_min_s: float = Field(0.5, gt=0)
     gap_factor: float = Field(5.0, gt=1)

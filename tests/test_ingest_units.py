@@ -239,3 +239,31 @@ def test_mavlink1_and_mavlink2_frames_give_the_same_samples(tmp_path):
 def test_isa_reference_roundtrip_matches_atmosphere_module():
     # guard on the formula the normaliser relies on
     assert height_from_pressure_m(pressure_at_height_pa(123.0, 95000.0), 95000.0) == pytest.approx(123.0)
+
+
+def test_distance_sensor_cross_checked_against_rangefinder(tmp_path):
+    """ArduPilot's two messages for one rangefinder: agreeing readings pass,
+    a reading the other message contradicts is refused and said."""
+    f = FlightLog(tmp_path / "both.tlog", autopilot=MAV_AUTOPILOT_ARDUPILOTMEGA)
+    f.heartbeat(0)
+    for k in range(10):
+        t = 0.1 * k
+        f.attitude(t)
+        f.rangefinder(t + 0.01, 5.0 + 0.1 * k)
+        # from the 6th on, DISTANCE_SENSOR reads 1.5 m less than RANGEFINDER
+        f.dist(t + 0.02, 5.0 + 0.1 * k - (1.5 if k >= 5 else 0.0))
+    items, st = collect(f.close(), rangefinder_stuck_s=100)
+    rs = of(items, RangeHeight)
+    assert st.range_source == "DISTANCE_SENSOR"
+    assert [r.range_m for r in rs] == pytest.approx([5.0 + 0.1 * k for k in range(5)])
+    bad = rejected(items, "disagrees")
+    assert len(bad) == 5 and st.rejected["disagrees"] == 5
+    assert "RANGEFINDER 5.50 m" in bad[0].detail and bad[0].sensor == "range"
+    # without the other message nothing is cross-checked
+    g = FlightLog(tmp_path / "one.tlog", autopilot=MAV_AUTOPILOT_ARDUPILOTMEGA)
+    g.heartbeat(0)
+    for k in range(10):
+        g.attitude(0.1 * k)
+        g.dist(0.1 * k + 0.02, 5.0 + 0.1 * k - (1.5 if k >= 5 else 0.0))
+    items, st = collect(g.close(), rangefinder_stuck_s=100)
+    assert len(of(items, RangeHeight)) == 10 and st.rejected["disagrees"] == 0

@@ -28,7 +28,11 @@ Decisions the issue left open (see also the module docs of :mod:`.clock`,
   attitude (within ``attitude_max_age_s``); beyond ``rangefinder_max_tilt_deg``
   the reading is refused (``tilt``). DISTANCE_SENSOR limits come from the
   message (``max_distance`` 0 means unknown), RANGEFINDER limits from the
-  configuration. *Stuck*: the same raw reading for ``rangefinder_stuck_s``
+  configuration. Where both come, each reading of the chosen one is
+  compared with the other's latest (received within
+  ``range_cross_max_age_s``); one that disagrees beyond
+  ``range_cross_tol_m`` / ``range_cross_tol_frac`` is refused
+  (``disagrees``). *Stuck*: the same raw reading for ``rangefinder_stuck_s``
   while the barometer moved at least ``rangefinder_stuck_min_move_m``; the
   run's later readings are refused (``stuck``) until the value changes (the
   first ``rangefinder_stuck_s`` of a run cannot be told from a steady hover).
@@ -220,6 +224,8 @@ class Normaliser:
         self._cos_max_tilt = math.cos(math.radians(cfg.rangefinder_max_tilt_deg))
         self._stuck_us = int(cfg.rangefinder_stuck_s * 1e6)
         self._run: Optional[list] = None  # [raw_value, t_start, p_min, p_max, boot]
+        # the latest reading of each rangefinder message, for the cross-check: name -> (recv_s, m)
+        self._range_last: dict[str, tuple[float, float]] = {}
         self._last_pressure_pa: Optional[float] = None
         self._pressure_id = PRESSURE_IDS[cfg.baro_instance]
         self._decoders = {mid: wire.make_decoder(mid) for mid in WANTED}
@@ -918,6 +924,8 @@ class Normaliser:
             self.stats.filtered["range_not_downward"] += 1
             return
         self._note(self.range_sel, "DISTANCE_SENSOR", self._range_selected)
+        if f["signal_quality"] != DISTANCE_SENSOR_QUALITY_INVALID:
+            self._range_last["DISTANCE_SENSOR"] = (recv_s, f["current_distance"] / 100.0)
         self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._distance_sensor_at, f)
 
     def _distance_sensor_at(self, f, t_us, recv_s) -> None:
@@ -926,6 +934,8 @@ class Normaliser:
             self._range_selected(it)
 
     def _rangefinder(self, f, recv_s, compid) -> None:
+        if _finite(f["distance"]):
+            self._range_last["RANGEFINDER"] = (recv_s, f["distance"])
         self._untimed(recv_s, self._rangefinder_at, f, "RANGEFINDER")  # no time field: see clock.py
 
     def _rangefinder_at(self, f, t_us, recv_s) -> None:
@@ -959,6 +969,14 @@ class Normaliser:
             self._reject(recv_s, "out_of_range", f"{name} {range_m:.3f} m outside [{lo_m:g}, {hi_m:g}] m", t_us, boot, sensor="range",
                          value_m=range_m, min_m=lo_m, max_m=hi_m)
             return
+        other = self._range_last.get("RANGEFINDER" if name == "DISTANCE_SENSOR" else "DISTANCE_SENSOR")
+        if other is not None and abs(recv_s - other[0]) <= self.cfg.range_cross_max_age_s:
+            tol = max(self.cfg.range_cross_tol_m, self.cfg.range_cross_tol_frac * max(range_m, other[1]))
+            if abs(range_m - other[1]) > tol:
+                self._reject(recv_s, "disagrees", f"{name} {range_m:.2f} m but the same rangefinder's "
+                             f"{'RANGEFINDER' if name == 'DISTANCE_SENSOR' else 'DISTANCE_SENSOR'} {other[1]:.2f} m",
+                             t_us, boot, sensor="range", value_m=range_m, min_m=lo_m, max_m=hi_m)
+                return
         if self._stuck(raw, t_us, boot):
             self._reject(recv_s, "stuck", f"{name} reads {range_m:.3f} m for {self.cfg.rangefinder_stuck_s} s while the baro moved", t_us, boot, sensor="range",
                          value_m=range_m, min_m=lo_m, max_m=hi_m)
