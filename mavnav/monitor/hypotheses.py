@@ -412,8 +412,11 @@ class HypothesisLogic:
         self.ins_exceed_since = None
         if stat > m.suspect_frac * thr:
             return Verdict("baro/INS", "suspect", implicates, stat=stat, threshold=thr, text=txt)
-        # a second difference is blind to a ramp: a pass rules out the INS, never the baro
-        clear = frozenset(("ins",)) if stat < m.clear_frac * thr and rej == 0 else frozenset()
+        # a second difference is blind to a ramp: a pass rules out the INS, never the
+        # baro; and with the baro excluded it rules out nothing (its reference is out,
+        # and the channel's accelerometer estimate has followed whichever was wrong)
+        clear = (frozenset(("ins",)) if stat < m.clear_frac * thr and rej == 0 and "baro_ins" not in self.excluded
+                 else frozenset())
         return Verdict("baro/INS", "pass", implicates, clear, stat, thr, scale_m=thr)  # V_s follows a slow error in part
 
     def _level_verdicts(self, t: int) -> list[Verdict]:
@@ -446,11 +449,10 @@ class HypothesisLogic:
             if abs(r) > self.m.suspect_frac * thr:
                 out.append(Verdict(test, "suspect", implicates, stat=abs(r), threshold=thr, text=txt))
             else:
-                # a pass clears the baro only, and only while the channel's level is
-                # held by its own sensor: a channel gating out its sensor coasts on
-                # the baro, and its level then follows a baro ramp
-                held = (self.rejections[name].rejected == 0
-                        and self.cusum[name].stat < self.m.clear_frac * self._h(name))
+                # a pass clears the baro only, and only while the channel takes its own
+                # sensor: a channel gating it out coasts on the baro, and its level
+                # then follows a baro ramp
+                held = self.rejections[name].rejected == 0
                 clear = frozenset(("baro",)) if abs(r) < self.m.clear_frac * thr and held else frozenset()
                 # scale: the threshold, not less the statistic: the channel's own height
                 # follows a slow baro error in part, so the margin overstates the power
@@ -718,19 +720,8 @@ class HypothesisLogic:
         self.excluded.add(name)
         self.consistent_since[name] = None
         if name == "baro_ins":
-            # a faulty baro is taken out of every aux channel, not only the fusion;
-            # what those channels took from it before (a level, a velocity) is
-            # opened up so their own sensors set it again, and their tests start over
+            # a faulty baro is taken out of every aux channel, not only the fusion
             self.bank.baro_on[GNSS] = self.bank.baro_on[RNG] = False
-            for c, aux in AUX:
-                if aux in self.excluded:
-                    continue
-                self.bank.P[c, 0, 0] += self.m.max_channel_sigma_m ** 2
-                self.bank.P[c, 1, 1] += self.m.max_channel_sigma_m ** 2 / max(self.m.coast_reinit_s, 1.0) ** 2
-                self.cusum[aux].clear()
-                self.rejections[aux].clear()
-                self.scale[aux].gap()
-                self.warm_until[aux] = t + self.warmup_us
         else:
             self.cusum[name].clear()
             self.rejections[name].clear()
