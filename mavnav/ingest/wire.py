@@ -42,12 +42,6 @@ def msg_name(msgid: int) -> str:
     return MSG_NAME.get(msgid, f"UNKNOWN_{msgid}")
 
 
-def crc_x25(data: bytes) -> int:
-    """MAVLink's CRC-16/MCRF4XX of ``data`` (init 0xFFFF, reflected, no xorout)."""
-    c = binascii.crc_hqx(bytes(data).translate(REV), 0xFFFF)
-    return (REV[c & 0xFF] << 8) | REV[c >> 8]
-
-
 # Frame parse results
 OK = 0
 NEED_MORE = 1
