@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 BASE := $(VENV)/.installed-base
 FULL := $(VENV)/.installed-test
 
-.PHONY: demo test install bench clean
+.PHONY: demo test test-fast install bench clean
 
 $(VENV)/bin/python:
 	$(PY) -m venv $(VENV)
@@ -34,6 +34,11 @@ demo: $(BASE)
 # The whole test suite.
 test: $(FULL)
 	$(BIN)/python -m pytest -q
+
+# The fast lane (under a minute): everything but the tests marked slow (Monte
+# Carlo, subprocesses and live links, the shared real logs, the browser).
+test-fast: $(FULL)
+	$(BIN)/python -m pytest -q -m "not slow"
 
 bench: $(FULL)
 	$(BIN)/python bench/estimator.py

@@ -15,14 +15,16 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
 from click.testing import CliRunner
 
 from mavnav.cli import main
 from mavnav.sinks.csv_sink import COLUMNS
+from tests.support.paths import SITL_LOGS
 
-REPO = Path(__file__).resolve().parents[1]
-LOGS = REPO / "sitl_logs"
+pytestmark = [pytest.mark.integration]
 
+LOGS = SITL_LOGS
 
 
 def read_csv(path):
@@ -57,6 +59,7 @@ def test_replay_speed_factor_paces_by_vehicle_time(tmp_path):
     assert res.exit_code == 2 and "realtime, max, or a positive factor" in res.output
 
 
+@pytest.mark.slow
 def test_audit_json_contract_and_exit_statuses(tmp_path):
     fault, nominal = LOGS / "px4_hover_gnss_step.tlog", LOGS / "px4_landing_nominal.tlog"
     js = tmp_path / "audit.json"
@@ -90,6 +93,7 @@ def test_audit_json_contract_and_exit_statuses(tmp_path):
     assert "alarms" in doc["files"][1]
 
 
+@pytest.mark.slow
 def test_audit_directory_and_table_as_a_real_subprocess(tmp_path):
     d = tmp_path / "fleet"
     d.mkdir()
@@ -136,6 +140,7 @@ def free_udp_port():
     return port
 
 
+@pytest.mark.slow
 def test_run_monitors_a_live_udp_stream_and_stops_cleanly(tmp_path):
     recs = tlog_records(LOGS / "px4_hover_gnss_step.tlog")
     port = free_udp_port()

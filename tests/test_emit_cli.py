@@ -12,7 +12,9 @@ from mavnav.cli.emit_options import EMIT_OPTION_KEYS, emit_options, make_emit_si
 from mavnav.errors import ConfigError
 from mavnav.report import RunSummary
 from mavnav.sinks.mavlink_out import MavlinkOutSink
-from test_emit_sink import Peer, feed, reports_every
+from tests.support.emit import Peer, feed, reports_every
+
+pytestmark = [pytest.mark.integration]
 
 
 def _command(store: dict, **factory_kw):

@@ -23,9 +23,11 @@ from mavnav.config import load_config
 from mavnav.errors import MavnavError
 from mavnav.fleet import audit_parallel, run_fleet
 from mavnav.ingest import expand_tlog_paths
+from tests.support.paths import REPO, SHARED_TLOGS
 
-REPO = Path(__file__).resolve().parents[1]
-SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "tlogs"
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+SHARED = SHARED_TLOGS
 SHORT_SHARED = ["real/gridlines_copter_indoor_nofix.tlog", "other/copter_sitl_mixed_v1_v2.tlog"]
 SITL = ["ardupilot_rng_dropout.tlog", "ardupilot_input_faults.tlog"]
 
@@ -62,6 +64,7 @@ def cluster():
         yield c
 
 
+@pytest.mark.realdata
 def test_dask_cluster_matches_single_process(fleet_dir, cluster, tmp_path):
     files = expand_tlog_paths(fleet_dir)
     assert len(files) >= 4

@@ -19,7 +19,7 @@ from mavnav.ingest import TlogSource
 from mavnav.pipeline import run
 from mavnav.samples import AutopilotHeight, ReferenceMoved
 from mavnav.sinks.base import Sink
-from test_ingest_support import FlightLog, collect, of
+from tests.support.flightlog import FlightLog, collect, of
 
 GROUND_MSL_M = 480.0  # where the vehicle stands, and takes off from
 STALE_HOME_MSL_M = 478.5  # the home set at the first GNSS fix, before arming

@@ -16,7 +16,7 @@ from mavnav.config import IngestConfig
 from mavnav.errors import InputError
 from mavnav.ingest import TlogSource, expand_tlog_paths
 from mavnav.samples import BaroHeight, Rejected, SpecificForceUp
-from test_ingest_support import P_GROUND_PA, UNIX0, FlightLog, collect, of, rejected
+from tests.support.flightlog import P_GROUND_PA, UNIX0, FlightLog, collect, of, rejected
 
 CFG = {"baro_reference": {"source": "config", "value": P_GROUND_PA}}
 

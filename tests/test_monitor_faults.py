@@ -7,10 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from monitor_helpers import Collect, Outcome, SENSORS, SCHEDULE, T0_US, cfg_for, fly, hover
-from fault_helpers import apply_fault
+from tests.support.monitor import Collect, Outcome, SENSORS, SCHEDULE, T0_US, cfg_for, fly, hover
+from tests.support.faults import apply_fault
 from mavnav.pipeline import run
-from mavnav.synthetic import paper_flight
+from tests.support.synthetic import paper_flight
+
+pytestmark = [pytest.mark.simulation, pytest.mark.slow]
 
 ONSET, DUR = 40.0, 20.0
 

@@ -3,15 +3,14 @@ their alert limits decides availability as it should."""
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import pytest
 
 from mavnav.audit import audit_file
 from mavnav.config import load_config
+from tests.support.paths import CONFIG, SITL_LOGS
 
-CONFIG = Path(__file__).resolve().parents[1] / "config"
-LOG = Path(__file__).resolve().parents[1] / "sitl_logs" / "ardupilot_rng_dropout.tlog"
+LOG = SITL_LOGS / "ardupilot_rng_dropout.tlog"
 
 
 @pytest.mark.parametrize("name, limit", [("profile_cat1.yaml", 10.0), ("profile_cat2_3.yaml", 5.3),

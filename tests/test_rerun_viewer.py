@@ -13,7 +13,8 @@ import click
 import pytest
 from click.testing import CliRunner
 
-from mavnav import pipeline, synthetic
+from mavnav import pipeline
+from tests.support import synthetic
 from mavnav.cli.viewer_options import (
     ViewerProcess,
     free_port,
@@ -28,9 +29,11 @@ from mavnav.errors import MavnavError
 from mavnav.sinks.base import Sink
 from mavnav.sinks.csv_sink import CsvSink
 
-from test_rerun_sink import read_rrd
+from tests.support.rerun import read_rrd
+from tests.support.paths import REPO
 
-REPO = Path(__file__).resolve().parent.parent
+pytestmark = [pytest.mark.integration]
+
 LOG_WITH_REBOOT = REPO / "sitl_logs" / "ardupilot_input_faults.tlog"
 
 

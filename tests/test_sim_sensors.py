@@ -15,9 +15,12 @@ import pytest
 from pymavlink import mavutil
 
 from mavnav.atmosphere import height_from_pressure_m, isa_pressure_at_msl_alt_pa
-from mavnav.frames import mat_nb_from_euler, down_row_from_euler, body_rates_from_euler_rates
+from mavnav.frames import down_row_from_euler
+from tests.support.frames_reference import body_rates_from_euler_rates, mat_nb_from_euler
 from mavnav.sim import scenario_from_dict, simulate
 from mavnav.sim.sensors import gauss_markov, mat_nb, body_rates
+
+pytestmark = [pytest.mark.simulation]
 
 G = 9.80665
 

@@ -9,7 +9,7 @@ from typing import List, Tuple
 from mavnav.atmosphere import pressure_at_height_pa
 from mavnav.config import IngestConfig
 from mavnav.ingest import TlogSource
-from mavnav.ingest.tlog_writer import TlogWriter
+from tests.support.tlog_writer import TlogWriter
 
 UNIX0 = 1_700_000_000.0
 P_GROUND_PA = 100_000.0
