@@ -19,6 +19,7 @@ import pytest
 from click.testing import CliRunner
 
 from mavnav.cli import main
+from mavnav.ingest import TlogSource
 from mavnav.sinks.csv_sink import COLUMNS
 from tests.support.paths import SITL_LOGS
 
@@ -48,13 +49,38 @@ def test_replay_writes_the_csv_contract(tmp_path):
     assert "gnss" in res.output and "alarm" in res.output  # the console shows alarm transitions
 
 
-def test_replay_speed_factor_paces_by_vehicle_time(tmp_path):
-    # 60 s of vehicle time at 30x takes about 2 s of wall time
-    t0 = time.monotonic()
-    res = CliRunner().invoke(main, ["replay", str(LOGS / "px4_landing_nominal.tlog"), "--speed", "30"])
-    dt = time.monotonic() - t0
+class FakeClock:
+    """``time`` for the replay's pacing: ``sleep`` moves ``monotonic`` on, nothing waits."""
+
+    def __init__(self):
+        self.now = 1000.0
+        self.slept = 0.0
+
+    def monotonic(self):
+        return self.now
+
+    def sleep(self, s):
+        assert s > 0
+        self.now += s
+        self.slept += s
+
+
+def test_replay_speed_factor_paces_by_vehicle_time(monkeypatch):
+    """At 30x, each sample is released at a thirtieth of its vehicle time since the
+    first: on a clock only the replay moves, the replay sleeps exactly the log's
+    vehicle-time span over 30 (the span read from the same log)."""
+    import mavnav.cli.run as run_mod
+
+    log = LOGS / "px4_landing_nominal.tlog"
+    stamped = [s for s in TlogSource(log) if getattr(s, "t_us", None) is not None and getattr(s, "boot", None) is not None]
+    assert {s.boot for s in stamped} == {0}  # one boot: the pacing never restarts
+    span_s = (stamped[-1].t_us - stamped[0].t_us) * 1e-6
+    assert span_s > 55
+    clock = FakeClock()
+    monkeypatch.setattr(run_mod, "time", clock)
+    res = CliRunner().invoke(main, ["replay", str(log), "--speed", "30"])
     assert res.exit_code == 0, res.output
-    assert 1.8 < dt < 15
+    assert clock.slept == pytest.approx(span_s / 30, rel=1e-9)
     res = CliRunner().invoke(main, ["replay", str(LOGS / "px4_landing_nominal.tlog"), "--speed", "fast"])
     assert res.exit_code == 2 and "realtime, max, or a positive factor" in res.output
 

@@ -88,7 +88,7 @@ def test_emit_input_needs_a_live_run():
 
 
 def test_misspelt_factory_keyword_is_an_error():
-    with pytest.raises(TypeError):
+    with pytest.raises(TypeError, match="unexpected keyword argument 'altitude_rate_hz'"):
         make_emit_sinks(emit=None, altitude_rate_hz=5.0)
 
 

@@ -124,5 +124,6 @@ def test_unreachable_scheduler_is_a_one_line_error(tmp_path, monkeypatch):
     r = CliRunner().invoke(main, ["audit", str(REPO / "sitl_logs" / SITL[0]), "--scheduler",
                                   f"tcp://127.0.0.1:{port}", "--no-cache"])
     assert r.exit_code != 0
-    assert isinstance(r.exception, SystemExit) or "Dask scheduler" in str(r.exception)
-    assert "cannot reach the Dask scheduler" in r.output
+    assert isinstance(r.exception, SystemExit) and r.exit_code == 2  # a user error, not a traceback
+    assert r.output.startswith(f"mavnav: error: cannot reach the Dask scheduler at tcp://127.0.0.1:{port}")
+    assert r.output.count("\n") == 1

@@ -168,7 +168,7 @@ def test_bit_flips_give_a_report_never_a_traceback(tmp_path, seed):
 def test_not_a_log(tmp_path):
     junk = tmp_path / "junk.bin"
     junk.write_bytes(b"\xa3\x95\x80" + bytes(10))
-    with pytest.raises(InputError):
+    with pytest.raises(InputError, match="junk.bin: DataFlash log with nothing mavnav can use"):
         list(open_log(junk))
     empty = tmp_path / "empty.bin"
     empty.write_bytes(b"")

@@ -118,5 +118,5 @@ def test_injected_clock_stamps_receive_time(tmp_path):
 
 
 def test_bad_connection_string_is_input_error():
-    with pytest.raises(InputError):
+    with pytest.raises(InputError, match="does-not-exist-mavnav,57600: cannot open"):
         LiveSource("/dev/does-not-exist-mavnav,57600", IngestConfig())

@@ -326,9 +326,9 @@ def test_not_a_ulog(tmp_path):
         with pytest.raises(InputError) as ei:
             read_ulog(p)
         assert str(p) in str(ei.value) and "\n" not in str(ei.value)
-    with pytest.raises(InputError):
+    with pytest.raises(InputError, match="missing.ulg: no such file"):
         read_ulog(tmp_path / "missing.ulg")
-    with pytest.raises(InputError):
+    with pytest.raises(InputError, match="is a directory, not a ULog"):
         read_ulog(tmp_path)
     bin_log = LOGS / "dkla_log171.bin"
     if bin_log.is_file():
