@@ -15,9 +15,9 @@ $(BASE): pyproject.toml | $(VENV)/bin/python
 	$(BIN)/pip install -q -e .
 	touch $(BASE)
 
-# Test extras: pytest, hypothesis, the fleet engine (dask), playwright for the
-# browser test, and MAVProxy (headless, without its GUI dependencies) for the
-# ground-station routing test.
+# Test extras: pytest, hypothesis, filterpy (the independent reference filter),
+# the fleet engine (dask), playwright for the browser test, and MAVProxy
+# (headless, without its GUI dependencies) for the ground-station routing test.
 $(FULL): pyproject.toml | $(VENV)/bin/python
 	$(BIN)/pip install -q -e '.[test,fleet,web]'
 	$(BIN)/pip install -q --no-deps MAVProxy==1.8.75 pynmeagps defusedxml pyserial
