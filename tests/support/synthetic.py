@@ -22,9 +22,9 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
+from mavnav.constants import G0_MPS2
 from mavnav.samples import BaroHeight, GnssHeight, RangeHeight, SpecificForceUp
 
-G_MPS2 = 9.80665
 
 
 @dataclass(frozen=True)
@@ -108,7 +108,7 @@ def paper_flight(
     # IMU noise over each hold interval (the last sample gets the nominal interval)
     tau_f = np.concatenate([tau, [schedule.imu_dt_s]])
     q = s.sigma_a_mps2 * np.sqrt(2.0 / (s.alpha_a_per_s * tau_f))
-    f_up = a + G_MPS2 + s.acc_bias_mps2 + q * rng.standard_normal(n)
+    f_up = a + G0_MPS2 + s.acc_bias_mps2 + q * rng.standard_normal(n)
     gaps = schedule.gaps
     samples: list = []
     u = s.sigma_bb_m * rng.standard_normal()
