@@ -3,8 +3,12 @@
 The log is split into records (8-byte big-endian receive time + one MAVLink
 frame). A record is a *frame* when its timestamp is plausible (years
 2000-2100), its magic byte and length fit, and its CRC (with the message's
-CRC_EXTRA) checks; anything else (radio garbage, truncated frames) is kept as
-an opaque *junk* record, byte for byte, up to the next valid record.
+CRC_EXTRA) checks (:func:`mavnav.ingest.wire.parse_frame`, as the tlog
+reader); anything else (radio garbage, truncated frames) is kept as an
+opaque *junk* record, byte for byte, up to the next valid record. Unlike the
+reader, which skips garbage, the injector must keep every byte, and it
+splits the whole file up front: hence its own record walk over the same
+frame parser.
 
 Every record the faults do not touch is copied byte for byte. A faulted
 message is decoded with pymavlink, changed, and re-framed with its original
@@ -27,17 +31,19 @@ which remove every record in the window (all systems, junk included).
 
 from __future__ import annotations
 
-import re
 import struct
 from dataclasses import dataclass
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mav2
 
 from ..atmosphere import P0_PA, height_from_pressure_m, pressure_at_height_pa
+from ..constants import G0_MPS2
 from ..errors import InputError
 from ..frames import down_row_from_euler
+from ..ingest import wire
+from ..ingest.normaliser import MAV_AUTOPILOT_INVALID, MAV_TYPE_GCS
 from .effects import height_error_m, keeps, out_of_range_reading_m, spikes
 from .faults import describe_fault
 from .scenario import Fault
@@ -45,19 +51,23 @@ from .scenario import Fault
 _TS_MIN_US = 946684800 * 10**6  # 2000-01-01
 _TS_MAX_US = 4102444800 * 10**6  # 2100-01-01
 _UNIX_US = 10**14  # a time_usec above this is Unix time, not boot time
-G_MILLI = 9.80665
 
-ID_HEARTBEAT = 0
-ID_GPS_RAW_INT, ID_GPS2_RAW = 24, 124
-ID_ATTITUDE = 30
-ID_HIGHRES_IMU = 105
-INT_IMU_IDS = (27, 26, 116, 129)  # RAW_IMU, SCALED_IMU, SCALED_IMU2, SCALED_IMU3 (milli-g)
-PRESSURE_IDS = (29, 137, 143)  # SCALED_PRESSURE, _2, _3 (hPa)
-ID_DISTANCE_SENSOR, ID_RANGEFINDER = 132, 173
+ID = wire.MSG_ID
+ID_HEARTBEAT = ID["HEARTBEAT"]
+ID_GPS_RAW_INT, ID_GPS2_RAW = ID["GPS_RAW_INT"], ID["GPS2_RAW"]
+ID_ATTITUDE = ID["ATTITUDE"]
+ID_HIGHRES_IMU = ID["HIGHRES_IMU"]
+INT_IMU_IDS = tuple(ID[n] for n in ("RAW_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3"))  # milli-g
+PRESSURE_IDS = tuple(ID[n] for n in ("SCALED_PRESSURE", "SCALED_PRESSURE2", "SCALED_PRESSURE3"))  # hPa
+ID_DISTANCE_SENSOR, ID_RANGEFINDER = ID["DISTANCE_SENSOR"], ID["RANGEFINDER"]
 GNSS_IDS = (ID_GPS_RAW_INT, ID_GPS2_RAW)
 RNG_IDS = (ID_DISTANCE_SENSOR, ID_RANGEFINDER)
 BARO_IDS = PRESSURE_IDS + (ID_HIGHRES_IMU,)
 IMU_IDS = (ID_HIGHRES_IMU,) + INT_IMU_IDS
+# HEARTBEAT types that are never the vehicle: besides the normaliser's ground
+# station, an onboard computer, a gimbal and an ADS-B receiver
+NOT_A_VEHICLE = (MAV_TYPE_GCS, mav2.MAV_TYPE_ONBOARD_CONTROLLER, mav2.MAV_TYPE_GIMBAL, mav2.MAV_TYPE_ADSB)
+MAV_SENSOR_ROTATION_PITCH_270 = mav2.MAV_SENSOR_ROTATION_PITCH_270  # a DISTANCE_SENSOR looking down
 
 _KIND_IDS = {
     "gnss": GNSS_IDS,
@@ -91,50 +101,28 @@ def _frame_end(data: bytes, pos: int) -> int:
     if not (_TS_MIN_US <= ts <= _TS_MAX_US):
         return -1
     f = pos + 8
-    magic = data[f]
-    if magic == 0xFE:
-        plen = data[f + 1]
-        hdr = 6
-        msgid = data[f + 5]
-        flen = hdr + plen + 2
-    elif magic == 0xFD:
-        if f + 10 > n:
-            return -1
-        plen = data[f + 1]
-        if data[f + 2] & ~0x01:
-            return -1  # unknown incompat flag: not a frame we can trust
-        hdr = 10
-        msgid = data[f + 7] | (data[f + 8] << 8) | (data[f + 9] << 16)
-        flen = hdr + plen + 2 + (13 if data[f + 2] & 0x01 else 0)
-    else:
-        return -1
-    if f + flen > n:
-        return -1
-    cls = mav2.mavlink_map.get(msgid)
-    if cls is None:
+    if data[f] == wire.STX_V2 and data[f + 2] & ~wire.IFLAG_SIGNED:
+        return -1  # unknown incompat flag: not a frame we can trust
+    status, flen = wire.parse_frame(data, f, n)[:2]
+    if status == wire.OK:
+        return f + flen
+    if status == wire.UNKNOWN_ID:
         # unknown message: accept only when a plausible record follows (or EOF)
         nxt = f + flen
         if nxt == n:
             return nxt
-        if nxt + 9 <= n and _TS_MIN_US <= int.from_bytes(data[nxt : nxt + 8], "big") <= _TS_MAX_US and data[nxt + 8] in (0xFD, 0xFE):
+        if nxt + 9 <= n and _TS_MIN_US <= int.from_bytes(data[nxt : nxt + 8], "big") <= _TS_MAX_US and data[nxt + 8] in (wire.STX_V2, wire.STX_V1):
             return nxt
-        return -1
-    crc = mav2.x25crc(data[f + 1 : f + hdr + plen])
-    crc.accumulate(bytes((cls.crc_extra,)))
-    stored = data[f + hdr + plen] | (data[f + hdr + plen + 1] << 8)
-    return f + flen if crc.crc == stored else -1
+    return -1  # bad start byte, bad CRC, or cut short
 
 
 def _next_valid(data: bytes, start: int) -> int:
     n = len(data)
     i = start + 8
     while True:
-        a = data.find(b"\xfd", i)
-        b = data.find(b"\xfe", i)
-        cands = [c for c in (a, b) if c >= 0]
-        if not cands:
+        m = wire.next_start(data, i, n)
+        if m < 0:
             return n
-        m = min(cands)
         p = m - 8
         if p >= start and _frame_end(data, p) > 0:
             return p
@@ -149,13 +137,9 @@ def split_tlog(data: bytes) -> List[Record]:
         end = _frame_end(data, pos)
         if end > 0:
             f = pos + 8
-            if data[f] == 0xFE:
-                out.append(Record(pos, end, int.from_bytes(data[pos:f], "big"), True, 1,
-                                  data[f + 5], data[f + 3], data[f + 4]))
-            else:
-                msgid = data[f + 7] | (data[f + 8] << 8) | (data[f + 9] << 16)
-                out.append(Record(pos, end, int.from_bytes(data[pos:f], "big"), True, 2,
-                                  msgid, data[f + 5], data[f + 6]))
+            _, _, msgid, sysid, compid, _ = wire.parse_frame(data, f, n)
+            out.append(Record(pos, end, int.from_bytes(data[pos:f], "big"), True,
+                              1 if data[f] == wire.STX_V1 else 2, msgid, sysid, compid))
             pos = end
             continue
         q = _next_valid(data, pos + 1)
@@ -168,30 +152,21 @@ def split_tlog(data: bytes) -> List[Record]:
 # ---------------------------------------------------------------- frames
 
 
-_TIME_FIELD_CACHE: Dict[int, Optional[Tuple[int, str, float]]] = {}
+_TIME_FIELDS = ("time_boot_ms", "time_usec")
+_TIME_READERS: Dict[int, Optional[Tuple[Callable[[bytes], object], float]]] = {}
 
 
-def _time_field(msgid: int) -> Optional[Tuple[int, str, float]]:
-    """(payload offset, struct code, seconds per unit) of a message's boot-time field."""
-    if msgid in _TIME_FIELD_CACHE:
-        return _TIME_FIELD_CACHE[msgid]
-    cls = mav2.mavlink_map.get(msgid)
-    res = None
-    if cls is not None:
-        tokens = re.findall(r"(\d*)([a-zA-Z?])", cls.unpacker.format.lstrip("<>=!@"))
-        offset = 0
-        for name, (count, code) in zip(cls.ordered_fieldnames, tokens):
-            if name in ("time_boot_ms", "time_usec"):
-                res = (offset, code, 1e-3 if name == "time_boot_ms" else 1e-6)
-                break
-            offset += struct.calcsize("<" + (count or "") + code)
-    _TIME_FIELD_CACHE[msgid] = res
-    return res
+def _time_reader(msgid: int) -> Optional[Tuple[Callable[[bytes], object], float]]:
+    """(reader of a message's boot-time field, seconds per unit), None if it has none."""
+    if msgid not in _TIME_READERS:
+        found = wire.make_field_reader(msgid, _TIME_FIELDS)
+        _TIME_READERS[msgid] = None if found is None else (found[1], 1e-3 if found[0] == "time_boot_ms" else 1e-6)
+    return _TIME_READERS[msgid]
 
 
 def _payload(data: bytes, rec: Record) -> bytes:
     f = rec.start + 8
-    hdr = 6 if rec.version == 1 else 10
+    hdr = wire.HEADER_LEN_V1 if rec.version == 1 else wire.HEADER_LEN_V2
     return data[f + hdr : f + hdr + data[f + 1]]
 
 
@@ -200,16 +175,11 @@ def _vehicle_time_s(data: bytes, rec: Record) -> Optional[Tuple[float, bool]]:
 
     Zero (unknown) and Unix-looking ``time_usec`` values are ignored.
     """
-    tf = _time_field(rec.msgid)
-    if tf is None:
+    tr = _time_reader(rec.msgid)
+    if tr is None:
         return None
-    off, code, scale = tf
-    size = struct.calcsize("<" + code)
-    pl = _payload(data, rec)
-    raw = pl[off : off + size]
-    if len(raw) < size:
-        raw = raw + bytes(size - len(raw))  # MAVLink 2 trailing-zero truncation
-    v = struct.unpack("<" + code, raw)[0]
+    read, scale = tr
+    v = read(_payload(data, rec))  # MAVLink 2 trailing-zero truncation padded
     if v == 0 or (scale == 1e-6 and v >= _UNIX_US):
         return None
     return v * scale, scale == 1e-3
@@ -273,7 +243,7 @@ def _detect_vehicle(data: bytes, records: Sequence[Record], sysid: Optional[int]
             pl = _payload(data, r) + bytes(9)
             # HEARTBEAT wire order: custom_mode u32, type u8, autopilot u8, ...
             mav_type, autopilot = pl[4], pl[5]
-            if autopilot != 8 and mav_type not in (6, 18, 26, 27):
+            if autopilot != MAV_AUTOPILOT_INVALID and mav_type not in NOT_A_VEHICLE:
                 return r.sysid, r.compid
         counts[(r.sysid, r.compid)] = counts.get((r.sysid, r.compid), 0) + 1
     if not counts:
@@ -393,7 +363,7 @@ def inject_bytes(
 
         if rec.msgid == ID_ATTITUDE:
             last_att = (msg.roll, msg.pitch)
-        if rec.msgid == ID_DISTANCE_SENSOR and msg.orientation == 25:
+        if rec.msgid == ID_DISTANCE_SENSOR and msg.orientation == MAV_SENSOR_ROTATION_PITCH_270:
             last_rng_max_m = msg.max_distance / 100.0
         before = {k: getattr(msg, k) for k in _HELD_FIELDS if hasattr(msg, k)}
 
@@ -506,7 +476,7 @@ def _apply(f: Fault, st: _FaultState, msg, msgid: int, vt: float, originals, att
             return True
     if k.startswith("rng_"):
         if msgid == ID_DISTANCE_SENSOR:
-            if msg.orientation != 25:
+            if msg.orientation != MAV_SENSOR_ROTATION_PITCH_270:
                 return False
             if k == "rng_dropout":
                 if f.effective_mode == "silent":
@@ -564,7 +534,7 @@ def _apply(f: Fault, st: _FaultState, msg, msgid: int, vt: float, originals, att
         if msgid == ID_HIGHRES_IMU:
             msg.xacc, msg.yacc, msg.zacc = msg.xacc + dx, msg.yacc + dy, msg.zacc + dz
         else:
-            to_mg = 1000.0 / G_MILLI
+            to_mg = 1000.0 / G0_MPS2
 
             def clip(v):
                 return int(max(-32768, min(32767, round(v))))
