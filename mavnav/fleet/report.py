@@ -159,8 +159,17 @@ def _plots(outdir: Path, files: list[dict], alarms: list[dict]) -> list[tuple[st
     matplotlib.use("Agg", force=True)
     plt = _need("matplotlib.pyplot")
     ok = [f for f in files if f["status"] == "ok"]
-    out = []
+    _plot_alarms_by_source(plt, outdir, ok, alarms)
+    _plot_autopilot_disagreement(plt, outdir, ok)
+    _plot_input_rates(plt, outdir, ok)
+    _plot_availability(plt, outdir, ok)
+    return [("alarms_by_source.png", "Caution and alarm episodes by source"),
+            ("autopilot_disagreement.png", "Disagreement with the autopilot's height"),
+            ("input_rates.png", "Input rates per file"),
+            ("availability.png", "Overall availability per file")]
 
+
+def _plot_alarms_by_source(plt, outdir: Path, ok: list[dict], alarms: list[dict]) -> None:
     fig, ax = plt.subplots(figsize=(7, 3.5))
     by = Counter((a["source"], a["state"]) for a in alarms)
     x = range(len(SOURCES))
@@ -175,8 +184,9 @@ def _plots(outdir: Path, files: list[dict], alarms: list[dict]) -> list[tuple[st
     fig.tight_layout()
     fig.savefig(outdir / "alarms_by_source.png", dpi=90)
     plt.close(fig)
-    out.append(("alarms_by_source.png", "Caution and alarm episodes by source"))
 
+
+def _plot_autopilot_disagreement(plt, outdir: Path, ok: list[dict]) -> None:
     fig, ax = plt.subplots(figsize=(7, 3.5))
     mx = [f["fused_vs_autopilot_max_m"] for f in ok if f.get("fused_vs_autopilot_max_m") is not None]
     rms = [f["fused_vs_autopilot_rms_m"] for f in ok if f.get("fused_vs_autopilot_rms_m") is not None]
@@ -194,8 +204,9 @@ def _plots(outdir: Path, files: list[dict], alarms: list[dict]) -> list[tuple[st
     fig.tight_layout()
     fig.savefig(outdir / "autopilot_disagreement.png", dpi=90)
     plt.close(fig)
-    out.append(("autopilot_disagreement.png", "Disagreement with the autopilot's height"))
 
+
+def _plot_input_rates(plt, outdir: Path, ok: list[dict]) -> None:
     fig, axes = plt.subplots(1, len(INPUTS), figsize=(10, 3.2))
     for ax, k in zip(axes, INPUTS):
         rates = [f[f"rate_{k}_hz"] for f in ok if f.get(f"rate_{k}_hz") is not None]
@@ -212,8 +223,9 @@ def _plots(outdir: Path, files: list[dict], alarms: list[dict]) -> list[tuple[st
     fig.tight_layout()
     fig.savefig(outdir / "input_rates.png", dpi=90)
     plt.close(fig)
-    out.append(("input_rates.png", "Input rates per file"))
 
+
+def _plot_availability(plt, outdir: Path, ok: list[dict]) -> None:
     fig, ax = plt.subplots(figsize=(7, 3.5))
     nom = [100 * f["overall_nominal"] for f in ok if f.get("overall_nominal") is not None]
     if nom:
@@ -224,8 +236,6 @@ def _plots(outdir: Path, files: list[dict], alarms: list[dict]) -> list[tuple[st
     fig.tight_layout()
     fig.savefig(outdir / "availability.png", dpi=90)
     plt.close(fig)
-    out.append(("availability.png", "Overall availability per file"))
-    return out
 
 
 # ---------------------------------------------------------------- markdown
