@@ -1,7 +1,7 @@
 """A home that moves mid-run (a new home set at arming, at another altitude): the
 reported heights follow it, the filters keep their frame and see no step.
 
-Recorded streams built from real pymavlink messages (tests.test_ingest_support.FlightLog),
+Recorded streams built from real pymavlink messages (tests.support.flightlog.FlightLog),
 replayed through the same pipeline as ``run``; the console, the CSV and the
 MAVLink output say the move."""
 
