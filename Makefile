@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 BASE := $(VENV)/.installed-base
 FULL := $(VENV)/.installed-test
 
-.PHONY: demo test install bench clean
+.PHONY: demo test test-fast install bench clean
 
 $(VENV)/bin/python:
 	$(PY) -m venv $(VENV)
@@ -15,9 +15,9 @@ $(BASE): pyproject.toml | $(VENV)/bin/python
 	$(BIN)/pip install -q -e .
 	touch $(BASE)
 
-# Test extras: pytest, hypothesis, the fleet engine (dask), playwright for the
-# browser test, and MAVProxy (headless, without its GUI dependencies) for the
-# ground-station routing test.
+# Test extras: pytest, hypothesis, filterpy (the independent reference filter),
+# the fleet engine (dask), playwright for the browser test, and MAVProxy
+# (headless, without its GUI dependencies) for the ground-station routing test.
 $(FULL): pyproject.toml | $(VENV)/bin/python
 	$(BIN)/pip install -q -e '.[test,fleet,web]'
 	$(BIN)/pip install -q --no-deps MAVProxy==1.8.75 pynmeagps defusedxml pyserial
@@ -34,6 +34,11 @@ demo: $(BASE)
 # The whole test suite.
 test: $(FULL)
 	$(BIN)/python -m pytest -q
+
+# The fast lane (under a minute): everything but the tests marked slow (Monte
+# Carlo, subprocesses and live links, the shared real logs, the browser).
+test-fast: $(FULL)
+	$(BIN)/python -m pytest -q -m "not slow"
 
 bench: $(FULL)
 	$(BIN)/python bench/estimator.py

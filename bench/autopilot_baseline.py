@@ -57,6 +57,7 @@ from typing import Iterable, List, Optional
 import numpy as np
 
 from mavnav.config import SensorsConfig
+from mavnav.constants import G0_MPS2
 from mavnav.report import AlarmEvent
 from mavnav.samples import BaroHeight, GnssHeight, RangeHeight, Reboot, SpecificForceUp
 
@@ -71,7 +72,7 @@ class BaselineConfig:
     stale_baro_s: float = 0.5
     fail_s: float = 5.0  # gate failing this long = height-source failure (EKF3 / EKF2)
     recover_s: float = 1.0  # passing this long after a failure = healthy again
-    gravity_mps2: float = 9.80665
+    gravity_mps2: float = G0_MPS2
     gnss_v_acc_floor_m: float = 0.3
     use_v_acc: bool = True
     # initial variances (as mavnav's filter.p0)

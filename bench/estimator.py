@@ -17,16 +17,20 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from filterpy.kalman import KalmanFilter
 
-from mavnav.bank import ChannelBank
-from mavnav.channel import CHANNELS, Model, process_noise, transition
-from mavnav.config import config_from_dict
-from mavnav.epochs import EpochBuilder, EpochStart
-from mavnav.synthetic import Schedule, TrueSensors, paper_flight
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository: tests.support
+
+from mavnav.bank import ChannelBank  # noqa: E402
+from mavnav.channel import CHANNELS, Model, process_noise, transition  # noqa: E402
+from mavnav.config import config_from_dict  # noqa: E402
+from mavnav.epochs import EpochBuilder, EpochStart  # noqa: E402
+from tests.support.synthetic import Schedule, TrueSensors, paper_flight  # noqa: E402
 
 SENSORS = TrueSensors(sigma_a_mps2=0.2, alpha_a_per_s=1.0, sigma_bb_m=1.0, gamma_bb_per_s=2.0, sigma_z_m=1.5)
 CFG = config_from_dict({

@@ -34,9 +34,11 @@ from pathlib import Path
 
 from pymavlink import mavutil
 
-from mavnav.config import IngestConfig
-from mavnav.ingest import TlogSource
-from mavnav.ingest.tlog_writer import TlogWriter
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository: tests.support
+
+from mavnav.config import IngestConfig  # noqa: E402
+from mavnav.ingest import TlogSource  # noqa: E402
+from tests.support.tlog_writer import TlogWriter  # noqa: E402
 
 USED = [
     "HIGHRES_IMU", "ATTITUDE", "SCALED_PRESSURE", "GPS_RAW_INT", "DISTANCE_SENSOR", "HEARTBEAT",

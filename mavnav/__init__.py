@@ -18,7 +18,11 @@ Conventions, written once:
   :mod:`mavnav.channel`.
 
 The estimator follows Ivanov, Moskvitin, Ivanov, Lezhneva (Transactions TSTU,
-2024, 30(4), 608-620) with the errata listed in ``docs/MODEL.md``.
+2024, 30(4), 608-620) with its errata fixed. ``MODEL.md`` in the docstrings is
+the model written out with the errata, ``../shared/docs/MODEL.md`` (beside the
+repository, not in it); ``docs/covariance.md`` reproduces the paper's
+covariance study and shows the errata, ``docs/integrity.md`` explains the
+monitor's logic.
 """
 
 __version__ = "0.1.0"

@@ -8,9 +8,10 @@ from __future__ import annotations
 
 import math
 
+from .constants import G0_MPS2
+
 T0_K = 288.15  # ISA sea-level temperature
 L_KPM = 0.0065  # temperature lapse rate, K/m
-G0_MPS2 = 9.80665
 R_AIR = 287.05287  # specific gas constant of dry air, J/(kg K)
 P0_PA = 101325.0
 _EXP = R_AIR * L_KPM / G0_MPS2  # ~0.190263

@@ -28,7 +28,7 @@ from typing import Optional
 
 import numpy as np
 
-from .channel import (AUX_GB, CHANNELS, GB, N_STATES, ChannelState, EpochInputs, Model, _check_finite, fix_height,
+from .channel import (AUX_GB, CHANNELS, GB, N_STATES, EpochInputs, Model, _check_finite,
                       gnss_gauss_markov, initial_state)
 from .jit import njit
 
@@ -406,15 +406,6 @@ class ChannelBank:
              + (1.0 + phi_u * phi_u) * ep.baro_white_var_m2)
         return r, S
 
-    def channel_state(self, c: int) -> ChannelState:
-        prev = self.baro_prev[c]
-        return ChannelState(x=self.x[c].copy(), P=self.P[c].copy(), t_us=self.t_us or 0,
-                            baro_prev_m=None if math.isnan(prev) else float(prev))
-
-    def set_channel(self, c: int, x: np.ndarray, P: np.ndarray) -> None:
-        self.x[c] = x
-        self.P[c] = 0.5 * (P + P.T)
-
     def _g(self, T: float, dv_var_m2ps2: float = 0.0) -> tuple[float, float]:
         """``Gamma``'s two non-zero entries; ``dv_var`` (the measured error of
         the integrated IMU) adds to the acceleration noise: ``q^2 += dv_var / T^2``."""
@@ -536,7 +527,3 @@ class ChannelBank:
         for j, M in new_cross.items():
             self._set_cross(target, j, M)
         return float(dx[0])
-
-    def height_fix(self, c: int, height_m: float, var_m2: float) -> None:
-        """Correct channel ``c`` with an independent measurement of H (feedback)."""
-        self.x[c], self.P[c] = fix_height(self.x[c], self.P[c], height_m, var_m2)

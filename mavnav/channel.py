@@ -344,21 +344,3 @@ def step(
     return new_state, out
 
 
-def fix_height(x: np.ndarray, P: np.ndarray, height_m: float, var_m2: float) -> tuple[np.ndarray, np.ndarray]:
-    """Update ``(x, P)`` with an independent measurement of ``H`` of variance
-    ``var_m2`` (the monitor's feedback into the reference channel); Joseph form."""
-    if not (math.isfinite(height_m) and math.isfinite(var_m2) and var_m2 > 0):
-        raise NonFiniteInputError(f"height fix is not finite ({height_m}, {var_m2})")
-    s = P[H, H] + var_m2
-    k = P[:, H] / s
-    x_new = x + k * (height_m - x[H])
-    A = np.eye(N_STATES)
-    A[:, H] -= k
-    P_new = A @ P @ A.T + var_m2 * np.outer(k, k)
-    return x_new, 0.5 * (P_new + P_new.T)
-
-
-def height_fix(state: ChannelState, height_m: float, var_m2: float) -> ChannelState:
-    """:func:`fix_height` on a :class:`ChannelState`."""
-    x, P = fix_height(state.x, state.P, height_m, var_m2)
-    return ChannelState(x=x, P=P, t_us=state.t_us, baro_prev_m=state.baro_prev_m)

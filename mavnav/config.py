@@ -16,6 +16,7 @@ from typing import Literal, Optional, Union
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from .constants import G0_MPS2
 from .errors import ConfigError
 
 
@@ -141,7 +142,7 @@ class FilterConfig(_Section):
     # reference point).
     height_prior: Literal["diffuse", "p0"] = "diffuse"
     # Gravity used in the control input W = [f_up, g].
-    gravity_mps2: float = Field(9.80665, gt=0)
+    gravity_mps2: float = Field(G0_MPS2, gt=0)
 
 
 # ---------------------------------------------------------------- ingestion

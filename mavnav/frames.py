@@ -27,14 +27,6 @@ def quat_from_euler(roll: float, pitch: float, yaw: float) -> Quat:
     )
 
 
-def euler_from_quat(q: Quat) -> Tuple[float, float, float]:
-    w, x, y, z = q
-    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return roll, pitch, yaw
-
-
 def down_row_from_euler(roll: float, pitch: float) -> Tuple[float, float, float]:
     """Third row of ``mat_nb`` (the NED 'down' component of a body vector).
 
@@ -80,33 +72,3 @@ def slerp(q0: Quat, q1: Quat, frac: float) -> Quat:
         out = tuple(s0 * a + s1 * b for a, b in zip(q0, q1))
     n = math.sqrt(sum(c * c for c in out))
     return tuple(c / n for c in out)  # type: ignore[return-value]
-
-
-def mat_nb_from_euler(
-    roll: float, pitch: float, yaw: float
-) -> Tuple[Tuple[float, float, float], Tuple[float, float, float], Tuple[float, float, float]]:
-    """Full body->NED rotation ``mat_nb`` (rows N, E, D) from Z-Y-X Euler angles.
-
-    Its third row equals :func:`down_row_from_euler`; ``mat_bn`` is its transpose.
-    """
-    sr, cr = math.sin(roll), math.cos(roll)
-    sp, cp = math.sin(pitch), math.cos(pitch)
-    sy, cy = math.sin(yaw), math.cos(yaw)
-    return (
-        (cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy),
-        (cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy),
-        (-sp, sr * cp, cr * cp),
-    )
-
-
-def body_rates_from_euler_rates(
-    roll: float, pitch: float, roll_rate: float, pitch_rate: float, yaw_rate: float
-) -> Tuple[float, float, float]:
-    """Body angular rates (p, q, r) from Z-Y-X Euler angle rates."""
-    sr, cr = math.sin(roll), math.cos(roll)
-    sp, cp = math.sin(pitch), math.cos(pitch)
-    return (
-        roll_rate - yaw_rate * sp,
-        pitch_rate * cr + yaw_rate * sr * cp,
-        -pitch_rate * sr + yaw_rate * cr * cp,
-    )

@@ -48,6 +48,8 @@ CFG = cfg_gm(3.0)
 GM = pytest.mark.parametrize("gm_sigma_m", [3.0, 0.0], ids=["gm_on", "gm_off"])
 
 
+@pytest.mark.simulation
+@pytest.mark.slow
 @GM
 @pytest.mark.parametrize("measured", [False, True], ids=["model_noise", "measured_noise"])
 @pytest.mark.parametrize("form", ["consistent", "printed"])
@@ -129,6 +131,8 @@ def test_bank_refuses_non_finite_input_and_keeps_state():
     assert np.array_equal(bank.x, x0)
 
 
+@pytest.mark.simulation
+@pytest.mark.slow
 @pytest.mark.parametrize("gm_sigma_m, gm_tau_s", [(0.0, 300.0), (3.0, 20.0)], ids=["white", "gauss_markov"])
 def test_cross_covariances_match_monte_carlo(gm_sigma_m, gm_tau_s):
     """The variance of each channel difference is P_a + P_b - 2 P_ab: the
@@ -136,9 +140,9 @@ def test_cross_covariances_match_monte_carlo(gm_sigma_m, gm_tau_s):
     cross term they would look about twice as calm as they are. Also with a
     GNSS error that is white + Gauss-Markov (a short correlation time, so it
     moves within the 12 s runs) and the filters modelling it."""
-    from estimator_helpers import with_gnss_gauss_markov
+    from tests.support.estimator import with_gnss_gauss_markov
     from mavnav.epochs import EpochBuilder, EpochStart
-    from mavnav.synthetic import Schedule, TrueSensors, paper_flight
+    from tests.support.synthetic import Schedule, TrueSensors, paper_flight
 
     # A regime where both aux channels lean on the shared baro+INS between
     # sparse fixes (slow baro noise, 2 Hz GNSS and rangefinder).

@@ -9,9 +9,11 @@ import pytest
 from scipy import stats
 
 from mavnav.channel import CHANNELS
-from mavnav.synthetic import Schedule, TrueSensors, paper_flight
+from tests.support.synthetic import Schedule, TrueSensors, paper_flight
 
-from estimator_helpers import config_for, run_channels, state_errors
+from tests.support.estimator import config_for, run_channels, state_errors
+
+pytestmark = [pytest.mark.simulation, pytest.mark.slow]
 
 SENSORS = TrueSensors(sigma_a_mps2=0.2, alpha_a_per_s=1.0, sigma_bb_m=1.0, gamma_bb_per_s=2.0, sigma_z_m=1.5)
 RUNS = 24

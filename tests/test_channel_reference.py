@@ -12,9 +12,9 @@ from filterpy.kalman import KalmanFilter
 
 from mavnav.channel import GB, N_PAPER, Model, process_noise, transition
 from mavnav.epochs import EpochBuilder, EpochStart
-from mavnav.synthetic import Schedule, TrueSensors, paper_flight
+from tests.support.synthetic import Schedule, TrueSensors, paper_flight
 
-from estimator_helpers import config_for, run_channels
+from tests.support.estimator import config_for, run_channels
 
 SENSORS = TrueSensors(sigma_a_mps2=0.2, alpha_a_per_s=1.0, sigma_bb_m=1.0, gamma_bb_per_s=2.0, sigma_z_m=1.5)
 

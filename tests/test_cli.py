@@ -15,14 +15,17 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
 from click.testing import CliRunner
 
 from mavnav.cli import main
+from mavnav.ingest import TlogSource
 from mavnav.sinks.csv_sink import COLUMNS
+from tests.support.paths import SITL_LOGS
 
-REPO = Path(__file__).resolve().parents[1]
-LOGS = REPO / "sitl_logs"
+pytestmark = [pytest.mark.integration]
 
+LOGS = SITL_LOGS
 
 
 def read_csv(path):
@@ -46,17 +49,43 @@ def test_replay_writes_the_csv_contract(tmp_path):
     assert "gnss" in res.output and "alarm" in res.output  # the console shows alarm transitions
 
 
-def test_replay_speed_factor_paces_by_vehicle_time(tmp_path):
-    # 60 s of vehicle time at 30x takes about 2 s of wall time
-    t0 = time.monotonic()
-    res = CliRunner().invoke(main, ["replay", str(LOGS / "px4_landing_nominal.tlog"), "--speed", "30"])
-    dt = time.monotonic() - t0
+class FakeClock:
+    """``time`` for the replay's pacing: ``sleep`` moves ``monotonic`` on, nothing waits."""
+
+    def __init__(self):
+        self.now = 1000.0
+        self.slept = 0.0
+
+    def monotonic(self):
+        return self.now
+
+    def sleep(self, s):
+        assert s > 0
+        self.now += s
+        self.slept += s
+
+
+def test_replay_speed_factor_paces_by_vehicle_time(monkeypatch):
+    """At 30x, each sample is released at a thirtieth of its vehicle time since the
+    first: on a clock only the replay moves, the replay sleeps exactly the log's
+    vehicle-time span over 30 (the span read from the same log)."""
+    import mavnav.cli.run as run_mod
+
+    log = LOGS / "px4_landing_nominal.tlog"
+    stamped = [s for s in TlogSource(log) if getattr(s, "t_us", None) is not None and getattr(s, "boot", None) is not None]
+    assert {s.boot for s in stamped} == {0}  # one boot: the pacing never restarts
+    span_s = (stamped[-1].t_us - stamped[0].t_us) * 1e-6
+    assert span_s > 55
+    clock = FakeClock()
+    monkeypatch.setattr(run_mod, "time", clock)
+    res = CliRunner().invoke(main, ["replay", str(log), "--speed", "30"])
     assert res.exit_code == 0, res.output
-    assert 1.8 < dt < 15
+    assert clock.slept == pytest.approx(span_s / 30, rel=1e-9)
     res = CliRunner().invoke(main, ["replay", str(LOGS / "px4_landing_nominal.tlog"), "--speed", "fast"])
     assert res.exit_code == 2 and "realtime, max, or a positive factor" in res.output
 
 
+@pytest.mark.slow
 def test_audit_json_contract_and_exit_statuses(tmp_path):
     fault, nominal = LOGS / "px4_hover_gnss_step.tlog", LOGS / "px4_landing_nominal.tlog"
     js = tmp_path / "audit.json"
@@ -90,6 +119,7 @@ def test_audit_json_contract_and_exit_statuses(tmp_path):
     assert "alarms" in doc["files"][1]
 
 
+@pytest.mark.slow
 def test_audit_directory_and_table_as_a_real_subprocess(tmp_path):
     d = tmp_path / "fleet"
     d.mkdir()
@@ -136,6 +166,7 @@ def free_udp_port():
     return port
 
 
+@pytest.mark.slow
 def test_run_monitors_a_live_udp_stream_and_stops_cleanly(tmp_path):
     recs = tlog_records(LOGS / "px4_hover_gnss_step.tlog")
     port = free_udp_port()

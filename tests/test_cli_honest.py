@@ -6,15 +6,16 @@ cut mid-record says where."""
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
 
 from mavnav.cli import main
-from test_ingest_support import FlightLog
+from tests.support.flightlog import FlightLog
+from tests.support.paths import REPO
 
-REPO = Path(__file__).resolve().parents[1]
+pytestmark = [pytest.mark.integration]
+
 SCENARIO = REPO / "config" / "scenarios" / "px4_hover_gnss_step.yaml"
 
 

@@ -21,10 +21,12 @@ from mavnav.pipeline import run
 from mavnav.samples import BaroHeight, LinkLost
 from mavnav.sinks.base import Sink
 from mavnav.sinks.csv_sink import COLUMNS, CsvSink
-from test_emit_sink import report
-from test_ingest_live import tlog_records
+from tests.support.emit import report
+from tests.support.live import tlog_records
+from tests.support.paths import REPO
 
-REPO = Path(__file__).resolve().parents[1]
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
 LOGS = REPO / "sitl_logs"
 
 

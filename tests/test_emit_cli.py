@@ -12,7 +12,9 @@ from mavnav.cli.emit_options import EMIT_OPTION_KEYS, emit_options, make_emit_si
 from mavnav.errors import ConfigError
 from mavnav.report import RunSummary
 from mavnav.sinks.mavlink_out import MavlinkOutSink
-from test_emit_sink import Peer, feed, reports_every
+from tests.support.emit import Peer, feed, reports_every
+
+pytestmark = [pytest.mark.integration]
 
 
 def _command(store: dict, **factory_kw):
@@ -86,7 +88,7 @@ def test_emit_input_needs_a_live_run():
 
 
 def test_misspelt_factory_keyword_is_an_error():
-    with pytest.raises(TypeError):
+    with pytest.raises(TypeError, match="unexpected keyword argument 'altitude_rate_hz'"):
         make_emit_sinks(emit=None, altitude_rate_hz=5.0)
 
 

@@ -10,58 +10,20 @@ import logging
 import time
 
 import pytest
-from pymavlink.dialects.v20 import common as mavlink2
 
 from mavnav.errors import ConfigError
 from mavnav.report import RunSummary
 from mavnav.config import config_from_dict
 from mavnav.sinks.mavlink_commands import needed_rates, parse_rate
 from mavnav.sinks.mavlink_out import EmitConfig, MavlinkOutSink
-from test_emit_sink import Peer, report, udp_sink
+from tests.support.emit import Peer, udp_sink
+from tests.support.emit import R, autopilot_heartbeat, Autopilot, run_until
 
-R = mavlink2
+pytestmark = [pytest.mark.integration]
+
 ACCEPTED, TEMP, DENIED, UNSUPPORTED, IN_PROGRESS = (
     R.MAV_RESULT_ACCEPTED, R.MAV_RESULT_TEMPORARILY_REJECTED, R.MAV_RESULT_DENIED, R.MAV_RESULT_UNSUPPORTED,
     R.MAV_RESULT_IN_PROGRESS)
-
-
-def autopilot_heartbeat():
-    return R.MAVLink_heartbeat_message(R.MAV_TYPE_QUADROTOR, R.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0,
-                                       R.MAV_STATE_STANDBY, 3)
-
-
-class Autopilot:
-    """Answers SET_MESSAGE_INTERVAL per message id: a list of answers, one per request (the last one
-    repeats); an answer is a result, a tuple of results sent in a row, or None (silent)."""
-
-    def __init__(self, peer: Peer, policy: dict):
-        self.peer = peer
-        self.policy = {k: list(v) for k, v in policy.items()}
-        self.commands = []
-        self.heartbeats_sent = 0
-        peer.handler = self.handle
-
-    def handle(self, peer, m):
-        if m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 191 and len(peer.of("HEARTBEAT", 191)) == 1:
-            peer.send(autopilot_heartbeat())  # the vehicle announces itself once it knows the address
-            self.heartbeats_sent += 1
-        if m.get_type() != "COMMAND_LONG":
-            return
-        self.commands.append(m)
-        answers = self.policy.get(int(m.param1), [ACCEPTED])
-        result = answers.pop(0) if len(answers) > 1 else answers[0]
-        for res in (result if isinstance(result, tuple) else () if result is None else (result,)):
-            peer.send(R.MAVLink_command_ack_message(m.command, res, 0, 0, m.get_srcSystem(), m.get_srcComponent()))
-
-
-def run_until(sink, cond, timeout=10.0):
-    t = 0
-    deadline = time.monotonic() + timeout
-    while not cond() and time.monotonic() < deadline:
-        sink.epoch(report(t))
-        t += 20_000
-        time.sleep(0.002)  # live pacing: the vehicle answers in real time
-    return cond()
 
 
 def test_requests_are_checked_retried_and_refusals_reported(caplog):

@@ -17,7 +17,6 @@ import subprocess
 import sys
 import threading
 import time
-from pathlib import Path
 
 import pytest
 from pymavlink import mavutil
@@ -30,13 +29,15 @@ from mavnav.report import RunSummary
 from mavnav.sim import load_scenario, simulate
 from mavnav.sinks.mavlink_commands import parse_rate
 from mavnav.sinks.mavlink_out import EmitConfig, MavlinkOutSink
-from test_emit_commands import Autopilot
-from test_emit_run import LiveRun, send_paced, tlog_frames
-from test_emit_sink import Peer, texts_of
+from tests.support.emit import Autopilot
+from tests.support.live import LiveRun, send_paced, tlog_frames
+from tests.support.emit import Peer, texts_of
+from tests.support.paths import SCENARIOS
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 pytest.importorskip("MAVProxy", reason="MAVProxy is not installed (pip install MAVProxy)")
 
-SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"
 SPEED = 5.0
 REPLAY_S = 12.0
 

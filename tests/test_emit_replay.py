@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,10 +16,12 @@ from mavnav.sim import load_scenario, simulate
 from mavnav.sinks.base import Sink
 from mavnav.sinks.mavlink_statustext import SEVERITY_FOR_STATE, StatusTextLimiter, format_text
 from pymavlink.dialects.v20 import common as mavlink2
-from test_emit_sink import Peer, texts_of, udp_sink
+from tests.support.emit import Peer, texts_of, udp_sink
+from tests.support.paths import SCENARIOS, SITL_LOGS
+
+pytestmark = [pytest.mark.integration]
 
 F32 = np.float32
-SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"
 
 
 class Recorder(Sink):
@@ -178,7 +179,6 @@ def test_rate_limited_statustexts_keep_every_sources_latest_state(gnss_step_run)
             state == "unavailable" and mine[-1].startswith(f"mavnav {src} STARTING"))
 
 
-SITL_LOGS = Path(__file__).resolve().parents[1] / "sitl_logs"
 
 
 def _wire_positions(rec: Recorder, seq):

@@ -9,13 +9,8 @@
 from __future__ import annotations
 
 import csv
-import signal
-import socket
-import subprocess
-import sys
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,45 +19,13 @@ from pymavlink import mavutil
 
 from mavnav.cli import main
 from mavnav.sim import load_scenario, simulate
-from test_emit_commands import Autopilot
-from test_emit_sink import Peer
+from tests.support.emit import Autopilot
+from tests.support.emit import Peer
+from tests.support.live import tlog_frames, send_paced, LiveRun
+from tests.support.paths import SCENARIOS
 
-SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"
-MAVNAV = Path(sys.executable).parent / "mavnav"
-SPEED = 8.0
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
-
-def free_udp_port() -> int:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
-
-
-def tlog_frames(path: Path, seconds: float):
-    """``(offset s, frame bytes)`` of a tlog's first ``seconds`` (record time)."""
-    log = mavutil.mavlink_connection(str(path))
-    out, t0 = [], None
-    while True:
-        m = log.recv_msg()
-        if m is None:
-            break
-        t0 = m._timestamp if t0 is None else t0
-        if m._timestamp - t0 > seconds:
-            break
-        out.append((m._timestamp - t0, bytes(m.get_msgbuf())))
-    log.close()
-    return out
-
-
-def send_paced(peer: Peer, port: int, frames, speed: float = SPEED) -> None:
-    start = time.monotonic()
-    for t, buf in frames:
-        wait = start + t / speed - time.monotonic()
-        if wait > 0:
-            time.sleep(wait)  # the simulated vehicle's clock, not a wait for a result
-        peer.sock.sendto(buf, ("127.0.0.1", port))
 
 
 @pytest.fixture(scope="module")
@@ -122,41 +85,6 @@ def test_replay_refuses_emit_input(gnss_step):
 
 
 # --------------------------------------------------------------------------- live runs
-
-
-class LiveRun:
-    """``mavnav run udpin:127.0.0.1:PORT ARGS`` as a process, stopped with SIGTERM."""
-
-    def __init__(self, tmp_path: Path, args, port: int = 0):
-        self.port = port or free_udp_port()
-        self.err_path = tmp_path / f"run-{self.port}.err"
-        self._err = self.err_path.open("w")
-        self.proc = subprocess.Popen([str(MAVNAV), "run", f"udpin:127.0.0.1:{self.port}", *args],
-                                     stdout=subprocess.DEVNULL, stderr=self._err, stdin=subprocess.DEVNULL)
-
-    def stderr(self) -> str:
-        return self.err_path.read_text()
-
-    def wait_for_text(self, text: str, timeout: float = 30.0) -> bool:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if text in self.stderr():
-                return True
-            if self.proc.poll() is not None:
-                return text in self.stderr()
-            time.sleep(0.05)  # polling a file for a condition, bounded
-        return False
-
-    def stop(self) -> str:
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-        try:
-            self.proc.wait(20)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait(5)
-        self._err.close()
-        return self.stderr()
 
 
 def _live(tmp_path, frames, args, vehicle: Peer):

@@ -10,7 +10,9 @@ import pytest
 from mavnav.errors import ConfigError
 from mavnav.report import RunSummary
 from mavnav.sinks.mavlink_link import load_signing_key, passphrase_to_key
-from test_emit_sink import Peer, event, feed, reports_every, udp_sink
+from tests.support.emit import Peer, event, feed, reports_every, udp_sink
+
+pytestmark = [pytest.mark.integration]
 
 KEY = hashlib.sha256(b"mavnav test key").digest()
 

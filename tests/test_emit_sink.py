@@ -1,7 +1,6 @@
 """MAVLink output sink: what a pymavlink peer on 127.0.0.1 receives and decodes.
 
-The helpers here (:class:`Peer`, :func:`report`, :func:`feed`) are shared by
-the other ``test_emit_*`` modules.
+The peer and the hand-made reports are in :mod:`tests.support.emit`.
 """
 
 from __future__ import annotations
@@ -9,196 +8,20 @@ from __future__ import annotations
 import logging
 import math
 import socket
-import threading
 import time
-from typing import Callable, List, Optional
 
 import numpy as np
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from mavnav.cli.emit_options import open_link
-from mavnav.report import (
-    CHANNEL_NAMES, PAIR_NAMES, SOURCES, AlarmEvent, ChannelReport, EpochReport, PairReport, RunSummary,
-    SourceStatus,
-)
+from mavnav.report import RunSummary
 from mavnav.samples import LinkLost, Reboot, ReferenceSet
-from mavnav.sinks.base import Sink, SinkSet
+from mavnav.sinks.base import SinkSet
 from mavnav.sinks.mavlink_out import DEBUG_NAMES, EmitConfig, MavlinkOutSink
+from tests.support.emit import F32, Peer, event, feed, report, reports_every, texts_of, udp_sink
 
-F32 = np.float32
-
-
-# --------------------------------------------------------------------------- helpers
-
-
-class Peer:
-    """A pymavlink endpoint on a UDP port of 127.0.0.1: decodes all it receives, in a thread.
-
-    ``key``: check MAVLink 2 signatures with this key (unsigned frames are
-    then refused too, unless ``allow_unsigned``).
-    """
-
-    def __init__(self, key: Optional[bytes] = None, allow_unsigned: bool = False, sysid: int = 1, compid: int = 1):
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        # a max-speed replay sends minutes of telemetry in a fraction of a
-        # second: a receive buffer for the whole burst, or loopback drops it
-        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4 << 20)
-        self.sock.bind(("127.0.0.1", 0))
-        self.sock.settimeout(0.02)
-        self.port = self.sock.getsockname()[1]
-        self.mav = mavlink2.MAVLink(None, srcSystem=sysid, srcComponent=compid)
-        self.mav.robust_parsing = True
-        if key is not None:
-            self.mav.signing.secret_key = key
-            self.mav.signing.timestamp = int(max(time.time() - 1420070400, 0) * 100_000)
-            self.mav.signing.allow_unsigned_callback = (lambda mav, msgid: True) if allow_unsigned else (
-                lambda mav, msgid: False)
-        self.msgs: list = []
-        self.bad: list = []
-        self.last_from = None
-        self.handler: Optional[Callable] = None  # called in the receive thread: handler(peer, msg)
-        self._cond = threading.Condition()
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-        self._thread.start()
-
-    @property
-    def url(self) -> str:
-        return f"udpout:127.0.0.1:{self.port}"
-
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            try:
-                data, addr = self.sock.recvfrom(65536)
-            except (socket.timeout, OSError):
-                continue
-            out = self.mav.parse_buffer(data) or []
-            with self._cond:
-                self.last_from = addr
-                for m in out:
-                    (self.bad if m.get_type() == "BAD_DATA" else self.msgs).append(m)
-                self._cond.notify_all()
-            if self.handler is not None:
-                for m in out:
-                    self.handler(self, m)
-
-    def of(self, mtype: str, compid: Optional[int] = None) -> list:
-        with self._cond:
-            return [m for m in self.msgs if m.get_type() == mtype
-                    and (compid is None or m.get_srcComponent() == compid)]
-
-    def wait_for(self, cond: Callable[[], bool], timeout: float = 5.0) -> bool:
-        deadline = time.monotonic() + timeout
-        with self._cond:
-            while not cond():
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    return False
-                self._cond.wait(min(left, 0.05))
-        return True
-
-    def clear(self) -> None:
-        with self._cond:
-            self.msgs.clear()
-            self.bad.clear()
-
-    def send(self, msg, addr=None) -> None:
-        self.sock.sendto(msg.pack(self.mav), addr or self.last_from)
-        self.mav.seq = (self.mav.seq + 1) % 256
-
-    def close(self) -> None:
-        self._stop.set()
-        self._thread.join(2)
-        self.sock.close()
-
-
-@pytest.fixture
-def peer():
-    p = Peer()
-    yield p
-    p.close()
-
-
-def status(state="nominal"):
-    return SourceStatus(state=state, since_t_s=0.0, reason="", window_stat=1.5)
-
-
-def report(t_us: int, h: float = 12.5, sigma: float = 0.4, *, boot: int = 0, overall: str = "nominal",
-           rng: str = "nominal", rng_agl: float = 7.25, rng_h: float = 7.5, baro_h: float = 13.0) -> EpochReport:
-    chans = tuple(
-        ChannelReport(n, rng_h if n == "rangefinder" else h + 0.1 * i, 0.3, 0.2, 0.0, 0.0, True, True,
-                      1.0 + i, 2, 0.1, -0.2)
-        for i, n in enumerate(CHANNEL_NAMES)
-    )
-    pairs = tuple(PairReport(n, 0.5 * (i + 1), 3.0, False, True) for i, n in enumerate(PAIR_NAMES))
-    sources = {s: status(rng if s == "rangefinder" else "nominal") for s in SOURCES}
-    return EpochReport(t_us=t_us, boot=boot, height_fused_m=h, sigma_fused_m=sigma, channels=chans, pairs=pairs,
-                       sources=sources, overall=overall, vpl_m=2.5, alert_limit_m=10.0,
-                       baro_height_ref_m=baro_h, range_height_agl_m=rng_agl)
-
-
-class Text:
-    """One STATUSTEXT as a ground station shows it: MAVLink 2 chunks joined."""
-
-    def __init__(self, first):
-        self.first, self.severity, self.id = first, first.severity, first.id
-        self.parts = [(first.chunk_seq, first.text)]
-
-    @property
-    def text(self) -> str:
-        """The chunks joined, the spaces that pad a chunk to the field collapsed."""
-        return " ".join("".join(t for _, t in sorted(self.parts)).split())
-
-
-def texts_of(msgs, strict: bool = True) -> List[Text]:
-    """STATUSTEXT messages reassembled: ``id`` 0 is a whole text; chunks of one nonzero
-    ``id`` are joined in ``chunk_seq`` order (the last is shorter than 50 characters).
-    Not ``strict`` (while messages are still arriving): only the complete texts."""
-    out: List[Text] = []
-    open_: dict = {}
-    for m in msgs:
-        if m.get_type() != "STATUSTEXT":
-            continue
-        if m.id == 0:
-            out.append(Text(m))
-            continue
-        t = open_.get(m.id)
-        if t is None:
-            t = open_[m.id] = Text(m)
-            out.append(t)
-        else:
-            assert m.severity == t.severity
-            t.parts.append((m.chunk_seq, m.text))
-        if len(m.text) < 50:
-            del open_[m.id]
-    if not strict:
-        return [t for t in out if t not in open_.values()]
-    assert not open_, "a chunked STATUSTEXT without its last chunk"
-    return out
-
-
-def event(t_s: float, source="gnss", state="alarm", previous="nominal", reason="innovation 6.1 sigma", boot=0):
-    return AlarmEvent(t_us=int(round(t_s * 1e6)), boot=boot, source=source, state=state, previous=previous,
-                      reason=reason)
-
-
-def feed(sink: Sink, reports) -> List[EpochReport]:
-    out = []
-    for r in reports:
-        sink.epoch(r)
-        out.append(r)
-    return out
-
-
-def reports_every(dt_s: float, duration_s: float, t0_s: float = 0.0, **kw) -> List[EpochReport]:
-    n = int(round(duration_s / dt_s))
-    return [report(int(round((t0_s + k * dt_s) * 1e6)), h=10.0 + 0.01 * k, **kw) for k in range(n)]
-
-
-def udp_sink(peer: Peer, **cfg) -> MavlinkOutSink:
-    c = EmitConfig(**cfg)
-    return MavlinkOutSink(open_link(peer.url, c.sysid, c.compid), c, description=peer.url)
+pytestmark = [pytest.mark.integration]
 
 
 # --------------------------------------------------------------------------- heartbeat
@@ -219,7 +42,7 @@ def test_heartbeat_is_an_onboard_controller_at_1hz_of_vehicle_time(peer):
         assert hb.base_mode == 0 and hb.custom_mode == 0
     assert hbs[0].system_status == mavlink2.MAV_STATE_STANDBY
     assert {hb.system_status for hb in hbs[1:]} == {mavlink2.MAV_STATE_ACTIVE}
-    assert all(m.get_header().mlen or True for m in hbs)
+    assert all(len(m.get_msgbuf()) == 10 + m.get_header().mlen + 2 for m in hbs)  # whole unsigned frames
     assert all(m.get_msgbuf()[0] == 0xFD for m in hbs)  # MAVLink 2 frames
 
 

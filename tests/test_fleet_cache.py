@@ -14,8 +14,10 @@ from mavnav.cli import main
 from mavnav.config import config_from_dict, load_config
 from mavnav.fleet import ResultCache, cache_key, config_json, file_sha256, run_fleet
 from mavnav.fleet.cache import code_fingerprint
+from tests.support.paths import REPO
 
-REPO = Path(__file__).resolve().parents[1]
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
 SITL = ["ardupilot_rng_dropout.tlog", "ardupilot_input_faults.tlog"]
 
 

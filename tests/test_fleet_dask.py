@@ -23,9 +23,11 @@ from mavnav.config import load_config
 from mavnav.errors import MavnavError
 from mavnav.fleet import audit_parallel, run_fleet
 from mavnav.ingest import expand_tlog_paths
+from tests.support.paths import REPO, SHARED_TLOGS
 
-REPO = Path(__file__).resolve().parents[1]
-SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "tlogs"
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+SHARED = SHARED_TLOGS
 SHORT_SHARED = ["real/gridlines_copter_indoor_nofix.tlog", "other/copter_sitl_mixed_v1_v2.tlog"]
 SITL = ["ardupilot_rng_dropout.tlog", "ardupilot_input_faults.tlog"]
 
@@ -62,6 +64,7 @@ def cluster():
         yield c
 
 
+@pytest.mark.realdata
 def test_dask_cluster_matches_single_process(fleet_dir, cluster, tmp_path):
     files = expand_tlog_paths(fleet_dir)
     assert len(files) >= 4
@@ -121,5 +124,6 @@ def test_unreachable_scheduler_is_a_one_line_error(tmp_path, monkeypatch):
     r = CliRunner().invoke(main, ["audit", str(REPO / "sitl_logs" / SITL[0]), "--scheduler",
                                   f"tcp://127.0.0.1:{port}", "--no-cache"])
     assert r.exit_code != 0
-    assert isinstance(r.exception, SystemExit) or "Dask scheduler" in str(r.exception)
-    assert "cannot reach the Dask scheduler" in r.output
+    assert isinstance(r.exception, SystemExit) and r.exit_code == 2  # a user error, not a traceback
+    assert r.output.startswith(f"mavnav: error: cannot reach the Dask scheduler at tcp://127.0.0.1:{port}")
+    assert r.output.count("\n") == 1

@@ -6,6 +6,7 @@ import shutil
 from pathlib import Path
 
 import pyarrow.parquet as pq
+import pytest
 from click.testing import CliRunner
 
 from mavnav.cli import main
@@ -13,8 +14,10 @@ from mavnav.config import load_config
 from mavnav.fleet import run_fleet
 from mavnav.fleet.report import alarm_kind, write_fleet_report
 from mavnav.report import SOURCES
+from tests.support.paths import REPO
 
-REPO = Path(__file__).resolve().parents[1]
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
 SITL = ["ardupilot_rng_dropout.tlog", "ardupilot_input_faults.tlog", "px4_hover_gnss_step.tlog"]
 
 

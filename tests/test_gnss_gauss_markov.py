@@ -20,9 +20,11 @@ from mavnav.bank import GNSS, ChannelBank
 from mavnav.channel import GB, H, VZ, Model
 from mavnav.epochs import EpochBuilder, EpochStart
 from mavnav.samples import GnssHeight
-from mavnav.synthetic import Schedule, TrueSensors, paper_flight
+from tests.support.synthetic import Schedule, TrueSensors, paper_flight
 
-from estimator_helpers import config_for, with_gnss_gauss_markov
+from tests.support.estimator import config_for, with_gnss_gauss_markov
+
+pytestmark = [pytest.mark.simulation, pytest.mark.slow]
 
 GM_SIGMA_M, GM_TAU_S = 3.0, 300.0  # the configuration's defaults
 SENSORS = TrueSensors(sigma_a_mps2=0.2, alpha_a_per_s=1.0, sigma_bb_m=1.0, gamma_bb_per_s=0.5, sigma_z_m=0.7)

@@ -1,7 +1,7 @@
 """A home that moves mid-run (a new home set at arming, at another altitude): the
 reported heights follow it, the filters keep their frame and see no step.
 
-Recorded streams built from real pymavlink messages (tests.test_ingest_support.FlightLog),
+Recorded streams built from real pymavlink messages (tests.support.flightlog.FlightLog),
 replayed through the same pipeline as ``run``; the console, the CSV and the
 MAVLink output say the move."""
 
@@ -19,7 +19,7 @@ from mavnav.ingest import TlogSource
 from mavnav.pipeline import run
 from mavnav.samples import AutopilotHeight, ReferenceMoved
 from mavnav.sinks.base import Sink
-from test_ingest_support import FlightLog, collect, of
+from tests.support.flightlog import FlightLog, collect, of
 
 GROUND_MSL_M = 480.0  # where the vehicle stands, and takes off from
 STALE_HOME_MSL_M = 478.5  # the home set at the first GNSS fix, before arming

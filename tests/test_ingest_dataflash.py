@@ -7,7 +7,6 @@ import contextlib
 import io
 import math
 import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,10 +18,11 @@ from mavnav.ingest.logs import expand_log_paths, log_format
 from mavnav.ingest.onboard.dataflash import read_dataflash
 from mavnav.ingest.onboard.source import OnboardSource
 from mavnav.samples import BaroHeight, GnssHeight, RangeHeight, ReferenceSet, Rejected, SpecificForceUp
+from tests.support.paths import SHARED_FLIGHTLOGS
 
-FLIGHTLOGS = Path(__file__).resolve().parents[2] / "shared" / "flightlogs"
+FLIGHTLOGS = SHARED_FLIGHTLOGS
 BINS = sorted(p for p in FLIGHTLOGS.glob("*") if p.suffix.lower() == ".bin") if FLIGHTLOGS.is_dir() else []
-pytestmark = pytest.mark.skipif(not BINS, reason=f"no DataFlash logs in {FLIGHTLOGS}")
+pytestmark = [pytest.mark.realdata, pytest.mark.slow, pytest.mark.skipif(not BINS, reason=f"no DataFlash logs in {FLIGHTLOGS}")]
 
 
 def _dfreader_rows(path, name, pred=lambda m: True):
@@ -168,7 +168,7 @@ def test_bit_flips_give_a_report_never_a_traceback(tmp_path, seed):
 def test_not_a_log(tmp_path):
     junk = tmp_path / "junk.bin"
     junk.write_bytes(b"\xa3\x95\x80" + bytes(10))
-    with pytest.raises(InputError):
+    with pytest.raises(InputError, match="junk.bin: DataFlash log with nothing mavnav can use"):
         list(open_log(junk))
     empty = tmp_path / "empty.bin"
     empty.write_bytes(b"")

@@ -3,11 +3,8 @@ and recovery, prompt close from another thread."""
 
 from __future__ import annotations
 
-import socket
 import threading
 import time
-from dataclasses import replace
-from pathlib import Path
 
 import pytest
 
@@ -15,56 +12,15 @@ from mavnav.config import IngestConfig
 from mavnav.errors import InputError
 from mavnav.ingest import LiveSource, TlogSource
 from mavnav.samples import (
-    AutopilotHeight, BaroHeight, GnssHeight, LinkLost, LinkRecovered, RangeHeight, SpecificForceUp,
+    BaroHeight, LinkLost, LinkRecovered, SpecificForceUp,
 )
-from test_ingest_support import FlightLog
+from tests.support.flightlog import FlightLog
+from tests.support.live import MEASUREMENTS, Sender, no_recv, tlog_records
+from tests.support.paths import SHARED_TLOGS
 
-MEASUREMENTS = (SpecificForceUp, BaroHeight, GnssHeight, RangeHeight, AutopilotHeight)
-SITL = Path(__file__).resolve().parents[1].parent / "shared" / "tlogs" / "sitl" / "copter_rangefinder_nominal.tlog"
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
-
-def tlog_records(path):
-    """(recv_s, frame) of a clean tlog."""
-    data = Path(path).read_bytes()
-    out, pos = [], 0
-    while pos + 10 <= len(data):
-        stx, plen = data[pos + 8], data[pos + 9]
-        flen = (6 + plen + 2) if stx == 0xFE else (10 + plen + 2 + (13 if data[pos + 10] & 1 else 0))
-        out.append((int.from_bytes(data[pos:pos + 8], "big") / 1e6, data[pos + 8:pos + 8 + flen]))
-        pos += 8 + flen
-    return out
-
-
-class Sender(threading.Thread):
-    """Streams tlog frames over UDP at ``speed`` times their recorded pace, frames
-    received within ``batch_s`` of each other in one datagram; pauses on request."""
-
-    def __init__(self, records, addr, speed=1.0, batch_s=0.02, pause_at=None, pause_s=0.0):
-        super().__init__(daemon=True)
-        self.records, self.addr, self.speed, self.batch_s = records, addr, speed, batch_s
-        self.pause_at, self.pause_s = pause_at, pause_s
-
-    def run(self):
-        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        t_log0, t_wall0 = self.records[0][0], time.monotonic()
-        paused = 0.0
-        i = 0
-        n = len(self.records)
-        while i < n:
-            t0 = self.records[i][0]
-            chunk = bytearray()
-            while i < n and self.records[i][0] - t0 <= self.batch_s and len(chunk) < 8000:
-                chunk += self.records[i][1]
-                i += 1
-            if self.pause_at is not None and not paused and t0 - t_log0 >= self.pause_at:
-                time.sleep(self.pause_s)
-                paused = self.pause_s
-            due = t_wall0 + paused + (t0 - t_log0) / self.speed
-            delay = due - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
-            sock.sendto(bytes(chunk), self.addr)
-        sock.close()
+SITL = SHARED_TLOGS / "sitl" / "copter_rangefinder_nominal.tlog"
 
 
 def run_live(records, cfg, *, speed, pause_at=None, pause_s=0.0, tail_s=0.6):
@@ -86,10 +42,6 @@ def run_live(records, cfg, *, speed, pause_at=None, pause_s=0.0, tail_s=0.6):
     return out, src.stats
 
 
-def _no_recv(items):
-    return [replace(s, recv_s=0.0) for s in items if isinstance(s, MEASUREMENTS)]
-
-
 def test_live_udp_gives_the_same_samples_as_the_file(tmp_path):
     f = FlightLog(tmp_path / "live.tlog")
     f.fly(0, 8, height_fn=lambda t: 0.0 if t < 3 else (t - 3.0))
@@ -97,10 +49,11 @@ def test_live_udp_gives_the_same_samples_as_the_file(tmp_path):
     cfg = IngestConfig(link_timeout_s=5.0)
     want = list(TlogSource(path, cfg))
     got, stats = run_live(tlog_records(path), cfg, speed=8.0)
-    assert _no_recv(got) == _no_recv(want)
+    assert no_recv(got) == no_recv(want)
     assert stats.samples["imu"] == 800 and stats.vehicle.sysid == 1
 
 
+@pytest.mark.realdata
 @pytest.mark.skipif(not SITL.is_file(), reason="shared/tlogs not beside the checkout")
 def test_live_replay_of_a_recorded_sitl_flight(tmp_path):
     recs = tlog_records(SITL)
@@ -111,8 +64,8 @@ def test_live_replay_of_a_recorded_sitl_flight(tmp_path):
     cfg = IngestConfig(link_timeout_s=5.0)
     want = list(TlogSource(prefix, cfg))
     got, _ = run_live(recs, cfg, speed=20.0)
-    assert len(_no_recv(want)) > 3000
-    assert _no_recv(got) == _no_recv(want)
+    assert len(no_recv(want)) > 3000
+    assert no_recv(got) == no_recv(want)
 
 
 def test_pause_is_link_loss_then_recovery(tmp_path):
@@ -165,5 +118,5 @@ def test_injected_clock_stamps_receive_time(tmp_path):
 
 
 def test_bad_connection_string_is_input_error():
-    with pytest.raises(InputError):
+    with pytest.raises(InputError, match="does-not-exist-mavnav,57600: cannot open"):
         LiveSource("/dev/does-not-exist-mavnav,57600", IngestConfig())

@@ -13,8 +13,11 @@ from pymavlink import mavutil
 from mavnav.config import IngestConfig
 from mavnav.ingest import TlogSource, expand_tlog_paths
 from mavnav.samples import Rejected
+from tests.support.paths import SHARED_TLOGS
 
-TLOGS = Path(__file__).resolve().parents[1].parent / "shared" / "tlogs"
+pytestmark = [pytest.mark.realdata, pytest.mark.slow]
+
+TLOGS = SHARED_TLOGS
 LOGS = expand_tlog_paths(TLOGS) if TLOGS.is_dir() else []
 
 # Stuck detection depends on the barometer history; it has its own test.

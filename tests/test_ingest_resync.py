@@ -20,8 +20,8 @@ from mavnav.config import IngestConfig
 from mavnav.ingest import LiveSource, TlogSource, wire
 from mavnav.ingest.stream_reader import StreamReader
 from mavnav.ingest.tlog_reader import TlogReader
-from test_ingest_live import _no_recv, tlog_records
-from test_ingest_support import FlightLog
+from tests.support.live import no_recv, tlog_records
+from tests.support.flightlog import FlightLog
 
 ALL = frozenset(wire.MSG_NAME)
 UNKNOWN_MSGID = 0x2B7A00  # in no dialect
@@ -201,8 +201,8 @@ def test_live_udp_through_garbage_datagrams_loses_no_sample(tmp_path):
     for s in src:
         got.append(s)
     sender.join(10)
-    assert len(_no_recv(want)) > 500
-    assert _no_recv(got) == _no_recv(want)
+    assert len(no_recv(want)) > 500
+    assert no_recv(got) == no_recv(want)
     assert src.stats.garbage_bytes > 0
 
 

@@ -16,7 +16,7 @@ from mavnav.config import IngestConfig
 from mavnav.errors import InputError
 from mavnav.ingest import TlogSource, expand_tlog_paths
 from mavnav.samples import BaroHeight, Rejected, SpecificForceUp
-from test_ingest_support import P_GROUND_PA, UNIX0, FlightLog, collect, of, rejected
+from tests.support.flightlog import P_GROUND_PA, UNIX0, FlightLog, collect, of, rejected
 
 CFG = {"baro_reference": {"source": "config", "value": P_GROUND_PA}}
 
@@ -71,7 +71,7 @@ def test_expand_tlog_paths(tmp_path, ingest_clean_log):
     # argument order; a directory's logs sorted in its place; no file twice
     assert got == [tmp_path / "b" / "a.TLOG", tmp_path / "b" / "z.tlog", ingest_clean_log]
     assert expand_tlog_paths([ingest_clean_log, tmp_path / "b"])[0] == ingest_clean_log
-    with pytest.raises(InputError):
+    with pytest.raises(InputError, match="nope: no such file or directory"):
         expand_tlog_paths([tmp_path / "nope"])
 
 

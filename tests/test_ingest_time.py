@@ -10,7 +10,7 @@ from mavnav.samples import (
     AutopilotHeight, BaroHeight, Gap, GnssHeight, LinkLost, LinkRecovered, RangeHeight, Reboot, ReferenceSet,
     SpecificForceUp,
 )
-from test_ingest_support import (
+from tests.support.flightlog import (
     MAV_AUTOPILOT_ARDUPILOTMEGA, P_GROUND_PA, UNIX0, FlightLog, collect, of, rejected,
 )
 

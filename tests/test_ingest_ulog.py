@@ -20,10 +20,11 @@ import pytest
 from mavnav.errors import InputError
 from mavnav.ingest.onboard import ulog as ulog_mod
 from mavnav.ingest.onboard.ulog import read_ulog
+from tests.support.paths import SHARED_FLIGHTLOGS
 
 pyulog = pytest.importorskip("pyulog")
 
-LOGS = Path(__file__).resolve().parents[2] / "shared" / "flightlogs"
+LOGS = SHARED_FLIGHTLOGS
 
 # file -> (firmware, vehicle, baro instance, baro instances, GNSS topic or None, has rangefinder)
 EXPECTED = {
@@ -83,6 +84,8 @@ def check_series_shape(s, *cols):
 # ---------------------------------------------------------------------------------- real logs
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_metadata_and_messages(name):
     rec, data, u = decoded(name)
@@ -101,6 +104,8 @@ def test_metadata_and_messages(name):
     assert rec.autopilot.name == "vehicle_local_position" and rec.autopilot.datum == "ekf_origin"
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_imu_and_attitude_match_pyulog(name):
     rec, data, _ = decoded(name)
@@ -127,6 +132,8 @@ def test_imu_and_attitude_match_pyulog(name):
     assert att.t_us[0] == ta[i0] and att.t_us[-1] == ta.max()  # timestamp_sample, the estimate's time
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 @pytest.mark.parametrize("name", AT_REST_AT_START)
 def test_imu_reads_gravity_at_rest(name):
     imu = decoded(name)[0].imu
@@ -137,6 +144,8 @@ def test_imu_reads_gravity_at_rest(name):
     assert np.median(imu.fz_mps2[first_s]) < -9.0  # FRD: specific force points up, z is down
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_baro_matches_pyulog(name):
     rec, data, _ = decoded(name)
@@ -158,6 +167,8 @@ def test_baro_matches_pyulog(name):
         assert data[("sensor_baro", b.instance)]["device_id"][0] == d["baro_device_id"][0]
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(n for n, e in EXPECTED.items() if e[4]))
 def test_gnss_matches_pyulog(name):
     rec, data, _ = decoded(name)
@@ -175,6 +186,8 @@ def test_gnss_matches_pyulog(name):
     assert set(np.unique(g.fix_type)) == set(np.unique(d["fix_type"]).tolist())  # every fix type kept
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 def test_rangefinder_matches_pyulog():
     rec, data, _ = decoded("frs_motor_failure_hexa.ulg")
     r = rec.rangefinder
@@ -188,6 +201,8 @@ def test_rangefinder_matches_pyulog():
     assert r.valid.dtype == bool and r.valid.all() == bool(np.all(d["signal_quality"][down] != 0))
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_autopilot_home_origin_match_pyulog(name):
     rec, data, _ = decoded(name)
@@ -214,6 +229,8 @@ def test_autopilot_home_origin_match_pyulog(name):
         assert rec.home_alt_msl_m is None
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_damage_lines(name):
     rec, data, u = decoded(name)
@@ -228,6 +245,8 @@ def test_damage_lines(name):
         assert rec.damage == [] and not u.file_corruption and not u.dropouts
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 def test_pyulog_warnings_do_not_reach_stdout(capsys):
     read_ulog(log_path("aut_quad_v6xrt.ulg"))
     out = capsys.readouterr().out
@@ -245,6 +264,8 @@ def _read_or_input_error(path: Path):
         return None
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["frs_motor_failure_hexa.ulg", "aut_quadrotor_local.ulg"])
 def test_truncated_copies(tmp_path, name):
     src = log_path(name)
@@ -269,6 +290,8 @@ def test_truncated_copies(tmp_path, name):
     assert len(rec.imu.t_us) >= len(full.imu.t_us) - 1
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 @pytest.mark.parametrize("name,seed,flips", [
     ("frs_motor_failure_hexa.ulg", 1, 1), ("frs_motor_failure_hexa.ulg", 2, 8),
     ("frs_motor_failure_hexa.ulg", 3, 64), ("frs_motor_failure_hexa.ulg", 4, 512),
@@ -303,9 +326,9 @@ def test_not_a_ulog(tmp_path):
         with pytest.raises(InputError) as ei:
             read_ulog(p)
         assert str(p) in str(ei.value) and "\n" not in str(ei.value)
-    with pytest.raises(InputError):
+    with pytest.raises(InputError, match="missing.ulg: no such file"):
         read_ulog(tmp_path / "missing.ulg")
-    with pytest.raises(InputError):
+    with pytest.raises(InputError, match="is a directory, not a ULog"):
         read_ulog(tmp_path)
     bin_log = LOGS / "dkla_log171.bin"
     if bin_log.is_file():
@@ -502,6 +525,8 @@ def _bulk_against_loop(p: Path):
     return bulk.bulk_to, bulk.ulog._file_corrupt
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_bulk_reader_equals_pyulog_loop(name):
     p = log_path(name)
@@ -518,6 +543,8 @@ def _data_start(p: Path) -> int:
     return fh.stopped_at
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["frs_gps_interference.ulg", "frs_motor_failure_hexa.ulg"])
 def test_bulk_reader_equals_pyulog_loop_on_damaged_copies(tmp_path, name):
     """Flips, garbage (with and without a sync sequence), splices, zeroed runs

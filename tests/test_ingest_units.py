@@ -10,7 +10,7 @@ import pytest
 from mavnav.atmosphere import height_from_pressure_m, pressure_at_height_pa
 from mavnav.frames import quat_from_euler
 from mavnav.samples import AutopilotHeight, BaroHeight, GnssHeight, RangeHeight, SpecificForceUp
-from test_ingest_support import (
+from tests.support.flightlog import (
     MAV_AUTOPILOT_ARDUPILOTMEGA, P_GROUND_PA, FlightLog, collect, of, rejected,
 )
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 import json
 import math
 import struct
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,10 +20,10 @@ from mavnav.errors import ConfigError, InputError
 from mavnav.frames import down_row_from_euler
 from mavnav.sim import parse_fault, scenario_from_dict, simulate
 from mavnav.sim.inject import inject_bytes
-from tlog_decode import decode
+from tests.support.tlog_decode import decode
+from tests.support.paths import SHARED_TLOGS
 
-ROOT = Path(__file__).resolve().parents[1]
-TLOGS = ROOT.parent / "shared" / "tlogs"
+TLOGS = SHARED_TLOGS
 
 
 def _rec(m) -> bytes:
@@ -148,6 +147,8 @@ def test_rangefinder_dropout_on_ardupilot_log(tmp_path):
         bytes(m.get_msgbuf()) for m in b if m.get_type() not in ("DISTANCE_SENSOR", "RANGEFINDER")]
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 @pytest.mark.skipif(not (TLOGS / "real" / "dronekit_copter_2015.tlog").exists(), reason="shared tlogs absent")
 def test_baro_step_on_a_real_log_with_corrupt_frames_and_a_reboot(tmp_path):
     data = (TLOGS / "real" / "dronekit_copter_2015.tlog").read_bytes()
@@ -234,6 +235,8 @@ def test_mavlink1_frames_stay_mavlink1(tmp_path):
     assert rep["sysid"] == 7 and rep["faults"][0]["records_modified"] == 50
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 @pytest.mark.skipif(not (TLOGS / "other" / "copter_sitl_mixed_v1_v2.tlog").exists(), reason="shared tlogs absent")
 def test_mixed_version_real_log_untouched_types_stay_identical(tmp_path):
     data = (TLOGS / "other" / "copter_sitl_mixed_v1_v2.tlog").read_bytes()

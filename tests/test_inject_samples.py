@@ -4,8 +4,6 @@ faulted source, only inside the window, with the semantics of `mavnav inject`.""
 from __future__ import annotations
 
 import json
-import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -26,10 +24,11 @@ from mavnav.samples import (
 )
 from mavnav.sim.effects import SampleFaults, height_error_m, keeps
 from mavnav.sim.faults import parse_fault
+from tests.support.paths import SHARED_FLIGHTLOGS
 
-FLIGHTLOGS = Path(__file__).resolve().parents[2] / "shared" / "flightlogs"
+FLIGHTLOGS = SHARED_FLIGHTLOGS
 BIN = FLIGHTLOGS / "SITL_wlichon_baseline_00000001.BIN"
-pytestmark = pytest.mark.skipif(not BIN.exists(), reason=f"{BIN} not present")
+pytestmark = [pytest.mark.realdata, pytest.mark.slow, pytest.mark.skipif(not BIN.exists(), reason=f"{BIN} not present")]
 
 
 @pytest.fixture(scope="module")

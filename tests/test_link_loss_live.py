@@ -7,9 +7,8 @@ from __future__ import annotations
 
 import socket
 import threading
-import time
-from pathlib import Path
 
+import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from mavnav.cli.run import AlarmPrinter
@@ -17,47 +16,14 @@ from mavnav.config import Config, IngestConfig
 from mavnav.ingest import LiveSource
 from mavnav.pipeline import run
 from mavnav.sinks.csv_sink import CsvSink
-from test_emit_sink import Peer, texts_of, udp_sink
-from test_ingest_live import tlog_records
+from tests.support.emit import Peer, texts_of, udp_sink
+from tests.support.live import tlog_records
+from tests.support.live import ReceiveClock, wait_until, send_all
+from tests.support.paths import SITL_LOGS
 
-LOGS = Path(__file__).resolve().parents[1] / "sitl_logs"
+pytestmark = [pytest.mark.integration]
 
-
-class ReceiveClock:
-    """Unix seconds the test controls: steady while data flows, moved on to make a silence."""
-
-    def __init__(self):
-        self.now = 1_700_000_000.0
-        self._lock = threading.Lock()
-
-    def __call__(self) -> float:
-        with self._lock:
-            self.now += 1e-4
-            return self.now
-
-    def skip(self, s: float) -> None:
-        with self._lock:
-            self.now += s
-
-
-def _wait(cond, timeout=10.0):
-    deadline = time.monotonic() + timeout
-    while not cond():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.005)
-    return True
-
-
-def send_all(sock, src, records) -> None:
-    """Send tlog records to a LiveSource and wait until its reader has them all
-    (flow control every 25 frames, not pacing)."""
-    start = src._reader.frames
-    for i, (_, frame) in enumerate(records):
-        sock.sendto(frame, src.local_address)
-        if i % 25 == 24:
-            assert _wait(lambda: src._reader.frames >= start + i + 1 - 50)
-    assert _wait(lambda: src._reader.frames == start + len(records))
+LOGS = SITL_LOGS
 
 
 def test_link_loss_is_reported_while_it_lasts(tmp_path, capsys):
@@ -84,7 +50,7 @@ def test_link_loss_is_reported_while_it_lasts(tmp_path, capsys):
         assert not lost_texts()
         n_before = len(peer.msgs)
         clock.skip(5.0)  # five seconds of silence on the receive clock
-        assert _wait(lambda: lost_texts())
+        assert wait_until(lambda: lost_texts())
         # said while the link is down: nothing was sent to mavnav since
         assert src._reader.frames == 2000
         lost = lost_texts()[0]
@@ -95,7 +61,7 @@ def test_link_loss_is_reported_while_it_lasts(tmp_path, capsys):
         assert "recovered" not in console
         # the data comes back
         send(recs[2000:])
-        assert _wait(lambda: any("LINK RECOVERED" in t.text for t in texts_of(peer.msgs, strict=False)))
+        assert wait_until(lambda: any("LINK RECOVERED" in t.text for t in texts_of(peer.msgs, strict=False)))
         rec = next(t for t in texts_of(peer.msgs, strict=False) if "LINK RECOVERED" in t.text)
         assert rec.severity == mavlink2.MAV_SEVERITY_NOTICE and "after 5.0 s" in rec.text
     finally:

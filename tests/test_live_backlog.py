@@ -9,16 +9,20 @@ from __future__ import annotations
 
 import threading
 import time
-from pathlib import Path
+
+import pytest
 
 from mavnav.config import Config
 from mavnav.ingest import LiveSource, TlogSource
 from mavnav.ingest.stream_reader import StreamReader
 from mavnav.pipeline import run
 from mavnav.sinks.base import Sink
-from test_ingest_live import Sender, tlog_records
+from tests.support.live import Sender, tlog_records
+from tests.support.paths import SITL_LOGS
 
-LOGS = Path(__file__).resolve().parents[1] / "sitl_logs"
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+LOGS = SITL_LOGS
 
 
 class Epochs(Sink):

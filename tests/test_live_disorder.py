@@ -16,8 +16,8 @@ import random
 import socket
 import threading
 import time
-from pathlib import Path
 
+import pytest
 from pymavlink.dialects.v20 import common as mav2
 
 from mavnav.config import Config
@@ -26,9 +26,12 @@ from mavnav.pipeline import run
 from mavnav.samples import Notice, Reboot, Rejected
 from mavnav.sim.inject import reframe
 from mavnav.sinks.base import Sink
-from test_ingest_live import tlog_records
+from tests.support.live import tlog_records
+from tests.support.paths import SITL_LOGS
 
-LOGS = Path(__file__).resolve().parents[1] / "sitl_logs"
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+LOGS = SITL_LOGS
 ATTITUDE = 30
 
 

@@ -16,6 +16,7 @@ import threading
 import time
 from pathlib import Path
 
+import pytest
 from click.testing import CliRunner
 from pymavlink.dialects.v20 import common as mav2
 
@@ -27,10 +28,13 @@ from mavnav.pipeline import run
 from mavnav.samples import Notice
 from mavnav.sinks.base import Sink
 from mavnav.sinks.csv_sink import COLUMNS, CsvSink
-from test_ingest_live import tlog_records
-from test_link_loss_live import ReceiveClock, _wait, send_all
+from tests.support.live import tlog_records
+from tests.support.live import ReceiveClock, wait_until, send_all
+from tests.support.paths import SITL_LOGS
 
-LOGS = Path(__file__).resolve().parents[1] / "sitl_logs"
+pytestmark = [pytest.mark.integration]
+
+LOGS = SITL_LOGS
 
 
 class Notes(Sink):
@@ -71,14 +75,14 @@ def test_waiting_for_a_heartbeat_then_the_vehicle_chosen_and_the_ignored(capsys)
     try:
         time.sleep(0.2)
         clock.skip(2.2)  # 2.2 s of silence on the receive clock
-        assert _wait(lambda: notes.texts("waiting_heartbeat"))
+        assert wait_until(lambda: notes.texts("waiting_heartbeat"))
         assert notes.texts("waiting_heartbeat")[0] == (
             f"waiting for a heartbeat on udpin:127.0.0.1:{port} (2 s): nothing received yet")
         # a ground station only: no vehicle yet, and said so
         sock.sendto(_heartbeat(255, 6, 8), src.local_address)
-        assert _wait(lambda: src._reader.frames == 1)
+        assert wait_until(lambda: src._reader.frames == 1)
         clock.skip(10.5)
-        assert _wait(lambda: len(notes.texts("waiting_heartbeat")) == 2)
+        assert wait_until(lambda: len(notes.texts("waiting_heartbeat")) == 2)
         assert notes.texts("waiting_heartbeat")[1].endswith("heard only system 255 (ground station)")
         # two vehicles: the first autopilot heartbeat is the one monitored, the other is said to be ignored
         recs = tlog_records(LOGS / "px4_hover_gnss_step.tlog")[:400]
@@ -86,7 +90,7 @@ def test_waiting_for_a_heartbeat_then_the_vehicle_chosen_and_the_ignored(capsys)
             sock.sendto(frame, src.local_address)
             if i == 300:  # after system 1's first heartbeat
                 sock.sendto(_heartbeat(2, 1, 3, seq=7), src.local_address)  # an ArduPlane, system 2
-        assert _wait(lambda: len(notes.texts("ignored")) == 2)
+        assert wait_until(lambda: len(notes.texts("ignored")) == 2)
         assert notes.texts("vehicle") == [
             f"monitoring system 1 (quadrotor, PX4, component 1) on udpin:127.0.0.1:{port}: the first autopilot heartbeat"]
         assert sorted(notes.texts("ignored")) == [
@@ -111,9 +115,9 @@ def test_waiting_for_the_asked_sysid_names_what_was_heard():
     try:
         for _, frame in tlog_records(LOGS / "px4_hover_gnss_step.tlog")[:100]:
             sock.sendto(frame, src.local_address)
-        assert _wait(lambda: src._reader.frames == 100)
+        assert wait_until(lambda: src._reader.frames == 100)
         clock.skip(2.5)
-        assert _wait(lambda: notes.texts("waiting_heartbeat"))
+        assert wait_until(lambda: notes.texts("waiting_heartbeat"))
         text = notes.texts("waiting_heartbeat")[0]
         assert text.startswith("waiting for a heartbeat from system 7 on udpin:127.0.0.1:")
         assert text.endswith("heard only system 1 (quadrotor, PX4)")
@@ -172,13 +176,13 @@ def test_link_loss_is_an_event_row_in_the_csv_while_it_lasts(tmp_path):
         time.sleep(0.2)
         assert not events()
         clock.skip(5.0)
-        assert _wait(lambda: events())  # in the file while the link is down
+        assert wait_until(lambda: events())  # in the file while the link is down
         lost = events()
         assert len(lost) == 1 and lost[0]["event"] == "link lost: no data from the vehicle for 5.0 s"
         epochs = [r for r in _csv(out) if not r["event"]]
         assert lost[0]["t_s"] == epochs[-1]["t_s"] and lost[0]["boot"] == "0"  # at the last epoch's time
         send(recs[2000:])
-        assert _wait(lambda: len(events()) == 2 or done)
+        assert wait_until(lambda: len(events()) == 2 or done)
     finally:
         sock.close()
         src.close()

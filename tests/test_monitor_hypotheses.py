@@ -4,8 +4,6 @@ ArduPilot log whose rangefinder reads 0 m the whole flight."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -14,8 +12,9 @@ from mavnav.config import load_config
 from mavnav.monitor.cusum import Cusum, siegmund_arl, threshold_for
 from mavnav.monitor.table import TABLE, judge
 from mavnav.monitor.verdict import Verdict
+from tests.support.monitor import fly
+from tests.support.paths import SHARED
 
-SHARED = Path(__file__).resolve().parents[1].parent / "shared"
 G, R, B, I = "gnss", "rangefinder", "baro", "ins"
 
 
@@ -86,6 +85,8 @@ def test_cusum_on_white_noise_rarely_trips_and_finds_a_small_shift(seed):
 LOG = SHARED / "flightlogs" / "SITL_wlichon_baseline_00000001.BIN"
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 @pytest.mark.skipif(not LOG.exists(), reason="needs ../shared/flightlogs")
 def test_a_rangefinder_reading_zero_in_flight_is_a_rangefinder_alarm_and_nothing_else():
     """RFND.Dist 0 (status out-of-range-low) for the whole flight while the
@@ -129,15 +130,12 @@ def test_residual_scale_measures_variance_and_correlation(seed):
     assert clipped.factor == 2.0
 
 
+@pytest.mark.simulation
+@pytest.mark.slow
 def test_a_baro_spike_is_gated_and_a_baro_step_alarms_within_a_second():
     """A 6 m baro transient of 0.15 s (prop wash, a pressure glitch) returns:
     no alarm. The same jump that stays is a baro step: alarmed on baro_ins
     within 1 s."""
-    import sys
-
-    sys.path.insert(0, str(Path(__file__).parent))
-    from monitor_helpers import fly
-
     spike = fly(("baro", "step", 40.0, 0.15, 6.0))
     assert not [a for a in spike.alarms if a.state == "alarm"], spike.alarms
     step = fly(("baro", "step", 40.0, 20.0, 6.0))

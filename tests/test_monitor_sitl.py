@@ -12,8 +12,11 @@ from pymavlink import mavutil
 
 from mavnav.audit import audit_file
 from mavnav.config import load_config
+from tests.support.paths import SHARED_TLOGS
 
-TLOGS = Path(__file__).resolve().parents[1].parent / "shared" / "tlogs"
+pytestmark = [pytest.mark.realdata, pytest.mark.slow]
+
+TLOGS = SHARED_TLOGS
 SITL = TLOGS / "sitl"
 
 

@@ -8,7 +8,7 @@ from mavnav.ingest import TlogSource
 from mavnav.pipeline import run
 from mavnav.sinks.base import Sink
 
-from test_cli import LOGS
+from tests.support.paths import SITL_LOGS as LOGS
 
 
 class Recorder(Sink):

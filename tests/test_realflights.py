@@ -15,14 +15,19 @@ from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+from tests.support.paths import BENCH  # noqa: E402
+
+sys.path.insert(0, str(BENCH))
 
 import realflights as rf  # noqa: E402
 
 from mavnav.sim import scenario_from_dict, simulate  # noqa: E402
 from mavnav.sim.faults import parse_fault  # noqa: E402
+from tests.support.paths import BENCH, SHARED_FLIGHTLOGS
 
-SITL_BIN = Path(__file__).resolve().parents[2] / "shared" / "flightlogs" / "SITL_wlichon_baseline_00000001.BIN"
+pytestmark = [pytest.mark.realdata, pytest.mark.slow]
+
+SITL_BIN = SHARED_FLIGHTLOGS / "SITL_wlichon_baseline_00000001.BIN"
 RNG_FAULTS = tuple(f for f in rf.FAULTS if f[2] == "rangefinder")
 
 

@@ -19,8 +19,9 @@ from mavnav.ingest import LiveSource
 from mavnav.pipeline import run
 from mavnav.samples import AutopilotHeight, BaroHeight, GnssHeight, ReferenceSet
 from mavnav.sinks.base import Sink
-from test_ingest_live import Sender, tlog_records
-from test_ingest_support import P_GROUND_PA, UNIX0, FlightLog, collect, of
+from tests.support.live import Sender, tlog_records
+from tests.support.flightlog import P_GROUND_PA, UNIX0, FlightLog, collect, of
+from tests.support.paths import SITL_LOGS
 
 HOME_MSL_M = 480.0
 UP_M = 14.0  # connected 14 m above home
@@ -157,6 +158,8 @@ def test_startup_fallback_is_said_and_bounded(tmp_path, capsys):
     assert "start-up" in err
 
 
+@pytest.mark.integration
+@pytest.mark.slow
 def test_live_midflight_connect_over_udp(tmp_path, capsys):
     """Real UDP on 127.0.0.1 at 4x: the first epochs already say 14 m, and nothing
     waits for HOME_POSITION (no 'waiting' line on the console)."""
@@ -196,7 +199,6 @@ def test_first_imu_first_so_a_quick_reference_loses_no_epoch():
     """A reference known at once releases the baro before the IMU (held for its source
     choice): measurements wait for the first IMU sample of the boot, then join in time
     order, so the epochs start with the data (ArduPilot SITL connected 30 m up)."""
-    from pathlib import Path
 
     from mavnav.ingest import TlogSource
     from mavnav.monitor import Monitor
@@ -204,7 +206,7 @@ def test_first_imu_first_so_a_quick_reference_loses_no_epoch():
     cfg = Config()
     mon = Monitor(cfg)
     n = 0
-    for s in TlogSource(Path(__file__).resolve().parents[1] / "sitl_logs" / "ardupilot_rng_dropout.tlog", cfg.ingest):
+    for s in TlogSource(SITL_LOGS / "ardupilot_rng_dropout.tlog", cfg.ingest):
         n += len(mon.push(s))
     c = mon.builder.counters
     # only what precedes the first IMU sample in vehicle time (one baro, one GNSS, one range)

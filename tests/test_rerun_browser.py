@@ -31,7 +31,10 @@ from mavnav.ingest import TlogSource
 from mavnav.sim import load_scenario, simulate
 from mavnav.sinks import rerun_blueprint as bp
 
-from test_rerun_sink import Capture, read_rrd
+from tests.support.rerun import Capture, read_rrd
+from tests.support.paths import SCENARIOS
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 CHROMIUM = "/usr/bin/chromium"
 FLAGS = [
@@ -44,7 +47,6 @@ FLAGS = [
     "--disable-quic",
 ]
 SHOT_DIR = Path(os.environ.get("MAVNAV_SCREENSHOT_DIR", "/tmp"))
-SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"
 
 # The viewer's own copy of the recording, as RRD bytes, base64 (chunked: large arrays).
 SAVE_JS = """() => {

@@ -9,8 +9,6 @@ pipeline into an .rrd, read back with rerun's own reader. The browser test
 
 from __future__ import annotations
 
-import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,9 +22,9 @@ from mavnav.samples import GnssHeight
 from mavnav.sim import load_scenario, simulate
 from mavnav.sinks import rerun_blueprint as bp
 from mavnav.sinks.rerun_sink import READOUT_INTERVAL_S
-from test_rerun_sink import Capture, read_rrd
+from tests.support.rerun import Capture, read_rrd
+from tests.support.paths import SCENARIOS
 
-SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"
 HOVER_M = 15.0  # the scenario's hover height
 STEP_M = 10.0  # its GNSS step
 WHITE, DARK = (255, 255, 255), (13, 16, 17)  # the viewer's light and dark plot backgrounds

@@ -13,7 +13,8 @@ import click
 import pytest
 from click.testing import CliRunner
 
-from mavnav import pipeline, synthetic
+from mavnav import pipeline
+from tests.support import synthetic
 from mavnav.cli.viewer_options import (
     ViewerProcess,
     free_port,
@@ -28,9 +29,11 @@ from mavnav.errors import MavnavError
 from mavnav.sinks.base import Sink
 from mavnav.sinks.csv_sink import CsvSink
 
-from test_rerun_sink import read_rrd
+from tests.support.rerun import read_rrd
+from tests.support.paths import REPO
 
-REPO = Path(__file__).resolve().parent.parent
+pytestmark = [pytest.mark.integration]
+
 LOG_WITH_REBOOT = REPO / "sitl_logs" / "ardupilot_input_faults.tlog"
 
 
@@ -193,7 +196,7 @@ def test_connect_urls():
     assert grpc_url("rerun+https://example.org/proxy")[2] == 443
     assert grpc_url("rerun://10.0.0.2/proxy")[1:] == ("10.0.0.2", 9876)
     for bad in ("http://127.0.0.1:9876/proxy", "rerun+http://127.0.0.1:9876/", "rerun+http://h:99999/proxy"):
-        with pytest.raises(MavnavError):
+        with pytest.raises(MavnavError, match="--connect '.*': (expected rerun|bad port)"):
             grpc_url(bad)
     assert web_page_url("0.0.0.0", 9090, "rerun+http://127.0.0.1:9876/proxy") == (
         "http://127.0.0.1:9090/?renderer=webgl&url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A9876%2Fproxy")
@@ -225,7 +228,7 @@ def test_viewer_options_decorator_parses_and_feeds_the_factory(tmp_path):
 
     res = runner.invoke(cmd, ["--viewer", "native"])
     assert res.exit_code == 2 and "native" in res.output
-    with pytest.raises(MavnavError):
+    with pytest.raises(MavnavError, match="expected rerun\\+http://HOST:PORT/proxy or a port"):
         make_viewer_sinks("none", "http://nowhere/proxy", None, live=False)
 
 

@@ -10,7 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+from tests.support.paths import BENCH  # noqa: E402
+
+sys.path.insert(0, str(BENCH))
 
 import scoremetrics as sm  # noqa: E402
 from autopilot_baseline import BaselineConfig, run_baseline  # noqa: E402

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from mavnav.sim import read_truth_csv, scenario_from_dict, simulate
-from tlog_decode import decode
+from tests.support.tlog_decode import decode
 
 _TIME_FIELDS = ("time_boot_ms", "time_usec")
 

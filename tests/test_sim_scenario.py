@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import pytest
 import yaml
@@ -14,8 +13,9 @@ from mavnav.cli import main
 from mavnav.config import SensorsConfig
 from mavnav.errors import ConfigError
 from mavnav.sim import load_scenario, read_truth_csv, scenario_from_dict
+from tests.support.paths import REPO
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = REPO
 SCENARIOS = sorted((ROOT / "config" / "scenarios").glob("*.yaml"))
 MIN = {"duration_s": 10, "trajectory": {"kind": "hover"}}
 

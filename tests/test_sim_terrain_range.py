@@ -11,7 +11,6 @@ configured correlation time.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,8 +18,9 @@ from pymavlink import mavutil
 
 from mavnav.errors import ConfigError
 from mavnav.sim import load_scenario, read_truth_csv, scenario_from_dict, simulate
+from tests.support.paths import REPO
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = REPO
 SCN = ROOT / "config" / "scenarios"
 
 

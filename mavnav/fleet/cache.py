@@ -50,7 +50,7 @@ def _version(dist: str) -> str:
 # than the task. Everything else (ingest, estimator, monitor, pipeline, audit,
 # config...) is in the fingerprint, including modules added later.
 _NOT_AUDIT_DIRS = {"cli", "sim"}
-_NOT_AUDIT_FILES = {"covariance.py", "synthetic.py", "fleet/__init__.py", "fleet/cache.py", "fleet/runner.py",
+_NOT_AUDIT_FILES = {"covariance.py", "fleet/__init__.py", "fleet/cache.py", "fleet/runner.py",
                     "fleet/report.py"}
 _AUDIT_SINKS = {"sinks/__init__.py", "sinks/base.py"}
 

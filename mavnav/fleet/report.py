@@ -159,8 +159,17 @@ def _plots(outdir: Path, files: list[dict], alarms: list[dict]) -> list[tuple[st
     matplotlib.use("Agg", force=True)
     plt = _need("matplotlib.pyplot")
     ok = [f for f in files if f["status"] == "ok"]
-    out = []
+    _plot_alarms_by_source(plt, outdir, ok, alarms)
+    _plot_autopilot_disagreement(plt, outdir, ok)
+    _plot_input_rates(plt, outdir, ok)
+    _plot_availability(plt, outdir, ok)
+    return [("alarms_by_source.png", "Caution and alarm episodes by source"),
+            ("autopilot_disagreement.png", "Disagreement with the autopilot's height"),
+            ("input_rates.png", "Input rates per file"),
+            ("availability.png", "Overall availability per file")]
 
+
+def _plot_alarms_by_source(plt, outdir: Path, ok: list[dict], alarms: list[dict]) -> None:
     fig, ax = plt.subplots(figsize=(7, 3.5))
     by = Counter((a["source"], a["state"]) for a in alarms)
     x = range(len(SOURCES))
@@ -175,8 +184,9 @@ def _plots(outdir: Path, files: list[dict], alarms: list[dict]) -> list[tuple[st
     fig.tight_layout()
     fig.savefig(outdir / "alarms_by_source.png", dpi=90)
     plt.close(fig)
-    out.append(("alarms_by_source.png", "Caution and alarm episodes by source"))
 
+
+def _plot_autopilot_disagreement(plt, outdir: Path, ok: list[dict]) -> None:
     fig, ax = plt.subplots(figsize=(7, 3.5))
     mx = [f["fused_vs_autopilot_max_m"] for f in ok if f.get("fused_vs_autopilot_max_m") is not None]
     rms = [f["fused_vs_autopilot_rms_m"] for f in ok if f.get("fused_vs_autopilot_rms_m") is not None]
@@ -194,8 +204,9 @@ def _plots(outdir: Path, files: list[dict], alarms: list[dict]) -> list[tuple[st
     fig.tight_layout()
     fig.savefig(outdir / "autopilot_disagreement.png", dpi=90)
     plt.close(fig)
-    out.append(("autopilot_disagreement.png", "Disagreement with the autopilot's height"))
 
+
+def _plot_input_rates(plt, outdir: Path, ok: list[dict]) -> None:
     fig, axes = plt.subplots(1, len(INPUTS), figsize=(10, 3.2))
     for ax, k in zip(axes, INPUTS):
         rates = [f[f"rate_{k}_hz"] for f in ok if f.get(f"rate_{k}_hz") is not None]
@@ -212,8 +223,9 @@ def _plots(outdir: Path, files: list[dict], alarms: list[dict]) -> list[tuple[st
     fig.tight_layout()
     fig.savefig(outdir / "input_rates.png", dpi=90)
     plt.close(fig)
-    out.append(("input_rates.png", "Input rates per file"))
 
+
+def _plot_availability(plt, outdir: Path, ok: list[dict]) -> None:
     fig, ax = plt.subplots(figsize=(7, 3.5))
     nom = [100 * f["overall_nominal"] for f in ok if f.get("overall_nominal") is not None]
     if nom:
@@ -224,8 +236,6 @@ def _plots(outdir: Path, files: list[dict], alarms: list[dict]) -> list[tuple[st
     fig.tight_layout()
     fig.savefig(outdir / "availability.png", dpi=90)
     plt.close(fig)
-    out.append(("availability.png", "Overall availability per file"))
-    return out
 
 
 # ---------------------------------------------------------------- markdown
@@ -246,6 +256,25 @@ def _md_table(header: Sequence[str], rows: list[Sequence]) -> str:
 def _markdown(files: list[dict], alarms: list[dict], summary: list[dict], plots, run_info: dict) -> str:
     ok = [f for f in files if f["status"] == "ok"]
     bad = [f for f in files if f["status"] != "ok"]
+    md = _md_overview(files, ok, bad, run_info)
+    md += ["## Alarms by source and kind", ""]
+    md.append(_md_table(["source", "state", "kind", "episodes", "files", "median s", "max s", "never cleared"],
+                        [[r["source"], r["state"], r["kind"], r["episodes"], r["files"], r["median_duration_s"],
+                          r["max_duration_s"], r["never_cleared"]] for r in summary]) if summary else "None.")
+    md += _md_rates(ok)
+    md += _md_autopilot(ok)
+    md += _md_most_alarms(ok)
+    if bad:
+        md += ["", "## Unreadable files", ""]
+        md.append(_md_table(["file", "error"], [[f["path"], f["error"]] for f in bad]))
+    md += ["", "## Plots", ""]
+    md += [f"![{title}]({name})\n" for name, title in plots]
+    md += ["", "Tables: `files.parquet` (one row per file), `alarms.parquet` (one row per episode), "
+               "`summary.parquet` (the alarms table above).", ""]
+    return "\n".join(md)
+
+
+def _md_overview(files: list[dict], ok: list[dict], bad: list[dict], run_info: dict) -> list[str]:
     worst = Counter(f["worst_state"] for f in ok)
     hours = sum(f["duration_s"] for f in ok) / 3600
     md = ["# mavnav fleet audit", ""]
@@ -256,14 +285,14 @@ def _markdown(files: list[dict], alarms: list[dict], summary: list[dict], plots,
         md.append(", ".join(f"{k}: {v}" for k, v in run_info.items()))
     md += ["", f"Worst state reached per file: {worst.get('alarm', 0)} alarm, {worst.get('caution', 0)} caution, "
                f"{worst.get('nominal', 0)} nominal.", ""]
-    md += ["## Alarms by source and kind", ""]
-    md.append(_md_table(["source", "state", "kind", "episodes", "files", "median s", "max s", "never cleared"],
-                        [[r["source"], r["state"], r["kind"], r["episodes"], r["files"], r["median_duration_s"],
-                          r["max_duration_s"], r["never_cleared"]] for r in summary]) if summary else "None.")
+    return md
+
+
+def _md_rates(ok: list[dict]) -> list[str]:
     tta = sorted({f["time_to_alarm_s"] for f in ok})
-    md += ["", "## Input rates that cannot support the time-to-alarm", "",
-           f"Time-to-alarm: {', '.join(f'{t:g} s' for t in tta) or 'n/a'}. Files whose average rate is below "
-           f"90 % of what it needs (an input with no samples at all is counted apart).", ""]
+    md = ["", "## Input rates that cannot support the time-to-alarm", "",
+          f"Time-to-alarm: {', '.join(f'{t:g} s' for t in tta) or 'n/a'}. Files whose average rate is below "
+          f"90 % of what it needs (an input with no samples at all is counted apart).", ""]
     rows = []
     for k in INPUTS:
         slow = [f for f in ok if k in (f["slow_inputs"] or "").split(",")]
@@ -273,26 +302,27 @@ def _markdown(files: list[dict], alarms: list[dict], summary: list[dict], plots,
                      statistics.median(rates) if rates else None, ", ".join(Path(f["path"]).name for f in slow[:5])
                      + (" ..." if len(slow) > 5 else "")])
     md.append(_md_table(["input", "needs Hz", "files too slow", "files without", "median Hz", "e.g."], rows))
-    md += ["", "## Worst disagreement with the autopilot's own height", ""]
+    return md
+
+
+def _md_autopilot(ok: list[dict]) -> list[str]:
+    md = ["", "## Worst disagreement with the autopilot's own height", ""]
     cmp_ = sorted((f for f in ok if f["fused_vs_autopilot_max_m"] is not None),
                   key=lambda f: -f["fused_vs_autopilot_max_m"])
     md.append(_md_table(["file", "max m", "RMS m", "worst state"],
                         [[f["path"], f["fused_vs_autopilot_max_m"], f["fused_vs_autopilot_rms_m"], f["worst_state"]]
                          for f in cmp_[:10]]) if cmp_ else "No file has an autopilot height.")
-    md += ["", "## Files with the most alarms", ""]
+    return md
+
+
+def _md_most_alarms(ok: list[dict]) -> list[str]:
+    md = ["", "## Files with the most alarms", ""]
     top = sorted((f for f in ok if f["alarm_episodes"] or f["caution_episodes"]),
                  key=lambda f: (-f["alarm_episodes"], -f["caution_episodes"]))[:10]
     md.append(_md_table(["file", "alarms", "cautions", "first alarm t s", "duration s"],
                         [[f["path"], f["alarm_episodes"], f["caution_episodes"], f["first_alarm_t_s"],
                           f["duration_s"]] for f in top]) if top else "None.")
-    if bad:
-        md += ["", "## Unreadable files", ""]
-        md.append(_md_table(["file", "error"], [[f["path"], f["error"]] for f in bad]))
-    md += ["", "## Plots", ""]
-    md += [f"![{title}]({name})\n" for name, title in plots]
-    md += ["", "Tables: `files.parquet` (one row per file), `alarms.parquet` (one row per episode), "
-               "`summary.parquet` (the alarms table above).", ""]
-    return "\n".join(md)
+    return md
 
 
 def write_fleet_report(results: Sequence[dict], outdir: str | Path, run_info: Optional[dict] = None) -> dict:

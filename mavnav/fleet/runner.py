@@ -206,6 +206,31 @@ class FleetRun:
     backend: str
 
 
+def _dispatch(jobs: list, backend: Optional[str], scheduler, workers: int) -> tuple[str, Iterator]:
+    """The backend that runs the jobs (named, or chosen: Dask with a scheduler,
+    processes for more than one worker and job, else serial) and its results."""
+    if backend is None:
+        backend = "dask" if scheduler is not None else "processes" if workers > 1 and len(jobs) > 1 else "serial"
+    if not jobs:
+        return "cache", iter(())
+    if backend == "dask":
+        return backend, _run_dask(jobs, scheduler)
+    if backend == "processes":
+        return backend, _run_processes(jobs, min(workers, len(jobs)))
+    if backend == "serial":
+        return backend, _run_serial(jobs)
+    raise ValueError(f"unknown backend {backend!r}")
+
+
+def _cache_put(cache: Optional[ResultCache], key: Optional[str], r: dict, digest: Optional[str]) -> None:
+    if cache is None or key is None:
+        return
+    try:
+        cache.put(key, r, meta={"path": r["path"], "sha256": digest})
+    except OSError as exc:
+        raise MavnavError(f"cannot write the cache in {cache.root}: {exc.strerror or exc}") from None
+
+
 def run_fleet(files: Sequence[str | Path], cfg: Config, *, sysid: Optional[int] = None, workers: int = 1,
               scheduler=None, cache_dir: Optional[str | Path] = None, rerun: bool = False,
               progress: Optional[Callable[[FleetCounts, bool], None]] = None,
@@ -243,20 +268,7 @@ def run_fleet(files: Sequence[str | Path], cfg: Config, *, sysid: Optional[int] 
             jobs.append((i, (ap, disp, cjson, sysid, faults)))
     report(counts, False)
 
-    if backend is None:
-        backend = "dask" if scheduler is not None else "processes" if workers > 1 and len(jobs) > 1 else "serial"
-    if not jobs:
-        backend = "cache"
-        it: Iterator = iter(())
-    elif backend == "dask":
-        it = _run_dask(jobs, scheduler)
-    elif backend == "processes":
-        it = _run_processes(jobs, min(workers, len(jobs)))
-    elif backend == "serial":
-        it = _run_serial(jobs)
-    else:
-        raise ValueError(f"unknown backend {backend!r}")
-
+    backend, it = _dispatch(jobs, backend, scheduler, workers)
     for i, r in it:
         r = _normal(r)
         info = r.setdefault("fleet", {})
@@ -265,11 +277,7 @@ def run_fleet(files: Sequence[str | Path], cfg: Config, *, sysid: Optional[int] 
             counts.failed += 1
         else:
             counts.done += 1
-            if cache is not None and keys[i] is not None:
-                try:
-                    cache.put(keys[i], r, meta={"path": r["path"], "sha256": digests[i]})
-                except OSError as exc:
-                    raise MavnavError(f"cannot write the cache in {cache.root}: {exc.strerror or exc}") from None
+            _cache_put(cache, keys[i], r, digests[i])
         results[i] = r
         report(counts, False)
     report(counts, True)

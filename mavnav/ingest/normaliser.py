@@ -95,6 +95,7 @@ from typing import Deque, List, Optional
 
 from ..atmosphere import height_from_pressure_m, pressure_at_height_pa
 from ..config import IngestConfig
+from ..constants import G0_MPS2
 from ..frames import cos_tilt, down_row_from_quat, f_up_from_body, quat_from_euler
 from ..samples import (
     AutopilotHeight,
@@ -119,7 +120,6 @@ from .stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
 from .streams import KindGuard, SourceSelector
 from .vehicle_class import is_height_input, not_applicable_reason, notice_text
 
-G0_MPS2 = 9.80665
 MILLI_G_MPS2 = G0_MPS2 / 1000.0
 MAV_AUTOPILOT_ARDUPILOTMEGA = 3
 MAV_AUTOPILOT_INVALID = 8

@@ -16,7 +16,7 @@ does.
 from __future__ import annotations
 
 import binascii
-from typing import Callable, Dict, Optional, Tuple
+from typing import Callable, Dict, Optional, Sequence, Tuple
 
 from pymavlink.dialects.v20 import ardupilotmega as _dialect
 
@@ -40,12 +40,6 @@ ENUMS = _dialect.enums  # enum name -> value -> entry (``.name``), for words on 
 
 def msg_name(msgid: int) -> str:
     return MSG_NAME.get(msgid, f"UNKNOWN_{msgid}")
-
-
-def crc_x25(data: bytes) -> int:
-    """MAVLink's CRC-16/MCRF4XX of ``data`` (init 0xFFFF, reflected, no xorout)."""
-    c = binascii.crc_hqx(bytes(data).translate(REV), 0xFFFF)
-    return (REV[c & 0xFF] << 8) | REV[c >> 8]
 
 
 # Frame parse results
@@ -148,6 +142,36 @@ def make_decoder(msgid: int) -> Optional[Decoder]:
         return out
 
     return decode_arrays
+
+
+def make_field_reader(msgid: int, names: Sequence[str]) -> Optional[Tuple[str, Callable[[bytes], object]]]:
+    """``(name, read)`` for the first of ``names`` a message has, in wire order:
+    ``read(payload)`` gives that field's value (a truncated MAVLink 2 payload
+    zero-padded, as :func:`make_decoder` does). None if the message has none
+    of them. Works for every message, char arrays included."""
+    cls = _dialect.mavlink_map.get(msgid)
+    if cls is None:
+        return None
+    types = dict(zip(cls.fieldnames, cls.fieldtypes))
+    index = 0  # position of the field's value in the unpacked tuple
+    for name, ln in zip(cls.ordered_fieldnames, cls.array_lengths):
+        if name in names:
+            break
+        index += ln if ln and types[name] != "char" else 1  # a char array unpacks to one bytes value
+    else:
+        return None
+    unpack, size = cls.unpacker.unpack, cls.unpacker.size
+    zeros = bytes(size)
+
+    def read(payload: bytes) -> object:
+        k = len(payload)
+        if k < size:
+            payload = payload + zeros[k:]
+        elif k > size:
+            payload = payload[:size]
+        return unpack(payload)[index]
+
+    return name, read
 
 
 def next_start(buf, start: int, n: int) -> int:

@@ -10,8 +10,6 @@ import numpy as np
 from ..bank import BARO, GNSS, PAIRS, RNG, ChannelBank
 from ..report import PAIR_NAMES, PairReport
 
-AUX_SOURCES = ("gnss", "rangefinder")  # the sources of channels 0 and 1
-
 
 @dataclass
 class Decision:
@@ -48,4 +46,4 @@ def diff_sigmas(bank: ChannelBank, floor_var=(0.0, 0.0, 0.0)) -> np.ndarray:
     return out
 
 
-__all__ = ["Decision", "pair_reports", "diff_sigmas", "AUX_SOURCES", "GNSS", "RNG", "BARO", "PAIRS"]
+__all__ = ["Decision", "pair_reports", "diff_sigmas", "GNSS", "RNG", "BARO", "PAIRS"]

@@ -14,7 +14,7 @@ In-process use (a scorecard)::
     out, report = inject_bytes(data, [parse_fault("gnss_step:onset=60,duration=20,magnitude=10")])
 
 Conventions: see :mod:`mavnav` (heights up, units in names, vehicle time vs
-receive time). Sensor models: docs/MODEL.md sections 2-4 with its errata.
+receive time). Sensor models: MODEL.md (``../shared/docs/``) sections 2-4 with its errata.
 """
 
 from .faults import FAULT_SYNTAX_HELP, parse_fault, sidecar_path

@@ -17,9 +17,9 @@ from typing import Callable, Dict, List
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mav2
 
+from ..constants import G0_MPS2
 from .scenario import MESSAGE_TYPES, LandingTrajectory, Scenario
 
-G_MILLI = 9.80665  # ArduPilot GRAVITY_MSS: 1000 milli-g
 
 # HEARTBEAT fields of a real autopilot (MAV_TYPE_QUADROTOR = 2)
 _HB = {
@@ -103,7 +103,7 @@ def _enc_highres_imu(scn, s):
 
 
 def _int_imu(s):
-    fa = _i16(s["f_b"] / G_MILLI * 1000.0)  # milli-g
+    fa = _i16(s["f_b"] / G0_MPS2 * 1000.0)  # milli-g
     wa = _i16(s["gyro"] * 1000.0)  # mrad/s
     ma = _i16(s["mag_gauss"] * 1000.0)  # mgauss
     tc = int(round(s["temperature_c"] * 100))  # cdegC

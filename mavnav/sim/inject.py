@@ -3,8 +3,12 @@
 The log is split into records (8-byte big-endian receive time + one MAVLink
 frame). A record is a *frame* when its timestamp is plausible (years
 2000-2100), its magic byte and length fit, and its CRC (with the message's
-CRC_EXTRA) checks; anything else (radio garbage, truncated frames) is kept as
-an opaque *junk* record, byte for byte, up to the next valid record.
+CRC_EXTRA) checks (:func:`mavnav.ingest.wire.parse_frame`, as the tlog
+reader); anything else (radio garbage, truncated frames) is kept as an
+opaque *junk* record, byte for byte, up to the next valid record. Unlike the
+reader, which skips garbage, the injector must keep every byte, and it
+splits the whole file up front: hence its own record walk over the same
+frame parser.
 
 Every record the faults do not touch is copied byte for byte. A faulted
 message is decoded with pymavlink, changed, and re-framed with its original
@@ -19,7 +23,7 @@ the clock (zero and Unix-looking values above 1e14 us are ignored: GNSS and
 old ArduPilot IMU stamps are not always on the boot clock), else the latest
 clock value before it. The clock running backwards by more than
 ``max(1 s, min(10 s, half its value))`` is a reboot (``boot`` counts from 0);
-smaller steps back are jitter between message types. A fault
+smaller steps back are jitter between message types (:func:`reboot_jump_s`). A fault
 applies in the boot where its onset is first reached (or the ``boot`` it
 names), to the vehicle's system only, except ``link_loss`` and ``reboot``,
 which remove every record in the window (all systems, junk included).
@@ -27,17 +31,19 @@ which remove every record in the window (all systems, junk included).
 
 from __future__ import annotations
 
-import re
 import struct
-from dataclasses import dataclass
-from typing import Dict, List, Optional, Sequence, Tuple
+from dataclasses import dataclass, field
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mav2
 
 from ..atmosphere import P0_PA, height_from_pressure_m, pressure_at_height_pa
+from ..constants import G0_MPS2
 from ..errors import InputError
 from ..frames import down_row_from_euler
+from ..ingest import wire
+from ..ingest.normaliser import MAV_AUTOPILOT_INVALID, MAV_TYPE_GCS
 from .effects import height_error_m, keeps, out_of_range_reading_m, spikes
 from .faults import describe_fault
 from .scenario import Fault
@@ -45,19 +51,23 @@ from .scenario import Fault
 _TS_MIN_US = 946684800 * 10**6  # 2000-01-01
 _TS_MAX_US = 4102444800 * 10**6  # 2100-01-01
 _UNIX_US = 10**14  # a time_usec above this is Unix time, not boot time
-G_MILLI = 9.80665
 
-ID_HEARTBEAT = 0
-ID_GPS_RAW_INT, ID_GPS2_RAW = 24, 124
-ID_ATTITUDE = 30
-ID_HIGHRES_IMU = 105
-INT_IMU_IDS = (27, 26, 116, 129)  # RAW_IMU, SCALED_IMU, SCALED_IMU2, SCALED_IMU3 (milli-g)
-PRESSURE_IDS = (29, 137, 143)  # SCALED_PRESSURE, _2, _3 (hPa)
-ID_DISTANCE_SENSOR, ID_RANGEFINDER = 132, 173
+ID = wire.MSG_ID
+ID_HEARTBEAT = ID["HEARTBEAT"]
+ID_GPS_RAW_INT, ID_GPS2_RAW = ID["GPS_RAW_INT"], ID["GPS2_RAW"]
+ID_ATTITUDE = ID["ATTITUDE"]
+ID_HIGHRES_IMU = ID["HIGHRES_IMU"]
+INT_IMU_IDS = tuple(ID[n] for n in ("RAW_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3"))  # milli-g
+PRESSURE_IDS = tuple(ID[n] for n in ("SCALED_PRESSURE", "SCALED_PRESSURE2", "SCALED_PRESSURE3"))  # hPa
+ID_DISTANCE_SENSOR, ID_RANGEFINDER = ID["DISTANCE_SENSOR"], ID["RANGEFINDER"]
 GNSS_IDS = (ID_GPS_RAW_INT, ID_GPS2_RAW)
 RNG_IDS = (ID_DISTANCE_SENSOR, ID_RANGEFINDER)
 BARO_IDS = PRESSURE_IDS + (ID_HIGHRES_IMU,)
 IMU_IDS = (ID_HIGHRES_IMU,) + INT_IMU_IDS
+# HEARTBEAT types that are never the vehicle: besides the normaliser's ground
+# station, an onboard computer, a gimbal and an ADS-B receiver
+NOT_A_VEHICLE = (MAV_TYPE_GCS, mav2.MAV_TYPE_ONBOARD_CONTROLLER, mav2.MAV_TYPE_GIMBAL, mav2.MAV_TYPE_ADSB)
+MAV_SENSOR_ROTATION_PITCH_270 = mav2.MAV_SENSOR_ROTATION_PITCH_270  # a DISTANCE_SENSOR looking down
 
 _KIND_IDS = {
     "gnss": GNSS_IDS,
@@ -91,50 +101,28 @@ def _frame_end(data: bytes, pos: int) -> int:
     if not (_TS_MIN_US <= ts <= _TS_MAX_US):
         return -1
     f = pos + 8
-    magic = data[f]
-    if magic == 0xFE:
-        plen = data[f + 1]
-        hdr = 6
-        msgid = data[f + 5]
-        flen = hdr + plen + 2
-    elif magic == 0xFD:
-        if f + 10 > n:
-            return -1
-        plen = data[f + 1]
-        if data[f + 2] & ~0x01:
-            return -1  # unknown incompat flag: not a frame we can trust
-        hdr = 10
-        msgid = data[f + 7] | (data[f + 8] << 8) | (data[f + 9] << 16)
-        flen = hdr + plen + 2 + (13 if data[f + 2] & 0x01 else 0)
-    else:
-        return -1
-    if f + flen > n:
-        return -1
-    cls = mav2.mavlink_map.get(msgid)
-    if cls is None:
+    if data[f] == wire.STX_V2 and data[f + 2] & ~wire.IFLAG_SIGNED:
+        return -1  # unknown incompat flag: not a frame we can trust
+    status, flen = wire.parse_frame(data, f, n)[:2]
+    if status == wire.OK:
+        return f + flen
+    if status == wire.UNKNOWN_ID:
         # unknown message: accept only when a plausible record follows (or EOF)
         nxt = f + flen
         if nxt == n:
             return nxt
-        if nxt + 9 <= n and _TS_MIN_US <= int.from_bytes(data[nxt : nxt + 8], "big") <= _TS_MAX_US and data[nxt + 8] in (0xFD, 0xFE):
+        if nxt + 9 <= n and _TS_MIN_US <= int.from_bytes(data[nxt : nxt + 8], "big") <= _TS_MAX_US and data[nxt + 8] in (wire.STX_V2, wire.STX_V1):
             return nxt
-        return -1
-    crc = mav2.x25crc(data[f + 1 : f + hdr + plen])
-    crc.accumulate(bytes((cls.crc_extra,)))
-    stored = data[f + hdr + plen] | (data[f + hdr + plen + 1] << 8)
-    return f + flen if crc.crc == stored else -1
+    return -1  # bad start byte, bad CRC, or cut short
 
 
 def _next_valid(data: bytes, start: int) -> int:
     n = len(data)
     i = start + 8
     while True:
-        a = data.find(b"\xfd", i)
-        b = data.find(b"\xfe", i)
-        cands = [c for c in (a, b) if c >= 0]
-        if not cands:
+        m = wire.next_start(data, i, n)
+        if m < 0:
             return n
-        m = min(cands)
         p = m - 8
         if p >= start and _frame_end(data, p) > 0:
             return p
@@ -149,13 +137,9 @@ def split_tlog(data: bytes) -> List[Record]:
         end = _frame_end(data, pos)
         if end > 0:
             f = pos + 8
-            if data[f] == 0xFE:
-                out.append(Record(pos, end, int.from_bytes(data[pos:f], "big"), True, 1,
-                                  data[f + 5], data[f + 3], data[f + 4]))
-            else:
-                msgid = data[f + 7] | (data[f + 8] << 8) | (data[f + 9] << 16)
-                out.append(Record(pos, end, int.from_bytes(data[pos:f], "big"), True, 2,
-                                  msgid, data[f + 5], data[f + 6]))
+            _, _, msgid, sysid, compid, _ = wire.parse_frame(data, f, n)
+            out.append(Record(pos, end, int.from_bytes(data[pos:f], "big"), True,
+                              1 if data[f] == wire.STX_V1 else 2, msgid, sysid, compid))
             pos = end
             continue
         q = _next_valid(data, pos + 1)
@@ -168,30 +152,21 @@ def split_tlog(data: bytes) -> List[Record]:
 # ---------------------------------------------------------------- frames
 
 
-_TIME_FIELD_CACHE: Dict[int, Optional[Tuple[int, str, float]]] = {}
+_TIME_FIELDS = ("time_boot_ms", "time_usec")
+_TIME_READERS: Dict[int, Optional[Tuple[Callable[[bytes], object], float]]] = {}
 
 
-def _time_field(msgid: int) -> Optional[Tuple[int, str, float]]:
-    """(payload offset, struct code, seconds per unit) of a message's boot-time field."""
-    if msgid in _TIME_FIELD_CACHE:
-        return _TIME_FIELD_CACHE[msgid]
-    cls = mav2.mavlink_map.get(msgid)
-    res = None
-    if cls is not None:
-        tokens = re.findall(r"(\d*)([a-zA-Z?])", cls.unpacker.format.lstrip("<>=!@"))
-        offset = 0
-        for name, (count, code) in zip(cls.ordered_fieldnames, tokens):
-            if name in ("time_boot_ms", "time_usec"):
-                res = (offset, code, 1e-3 if name == "time_boot_ms" else 1e-6)
-                break
-            offset += struct.calcsize("<" + (count or "") + code)
-    _TIME_FIELD_CACHE[msgid] = res
-    return res
+def _time_reader(msgid: int) -> Optional[Tuple[Callable[[bytes], object], float]]:
+    """(reader of a message's boot-time field, seconds per unit), None if it has none."""
+    if msgid not in _TIME_READERS:
+        found = wire.make_field_reader(msgid, _TIME_FIELDS)
+        _TIME_READERS[msgid] = None if found is None else (found[1], 1e-3 if found[0] == "time_boot_ms" else 1e-6)
+    return _TIME_READERS[msgid]
 
 
 def _payload(data: bytes, rec: Record) -> bytes:
     f = rec.start + 8
-    hdr = 6 if rec.version == 1 else 10
+    hdr = wire.HEADER_LEN_V1 if rec.version == 1 else wire.HEADER_LEN_V2
     return data[f + hdr : f + hdr + data[f + 1]]
 
 
@@ -200,16 +175,11 @@ def _vehicle_time_s(data: bytes, rec: Record) -> Optional[Tuple[float, bool]]:
 
     Zero (unknown) and Unix-looking ``time_usec`` values are ignored.
     """
-    tf = _time_field(rec.msgid)
-    if tf is None:
+    tr = _time_reader(rec.msgid)
+    if tr is None:
         return None
-    off, code, scale = tf
-    size = struct.calcsize("<" + code)
-    pl = _payload(data, rec)
-    raw = pl[off : off + size]
-    if len(raw) < size:
-        raw = raw + bytes(size - len(raw))  # MAVLink 2 trailing-zero truncation
-    v = struct.unpack("<" + code, raw)[0]
+    read, scale = tr
+    v = read(_payload(data, rec))  # MAVLink 2 trailing-zero truncation padded
     if v == 0 or (scale == 1e-6 and v >= _UNIX_US):
         return None
     return v * scale, scale == 1e-3
@@ -273,7 +243,7 @@ def _detect_vehicle(data: bytes, records: Sequence[Record], sysid: Optional[int]
             pl = _payload(data, r) + bytes(9)
             # HEARTBEAT wire order: custom_mode u32, type u8, autopilot u8, ...
             mav_type, autopilot = pl[4], pl[5]
-            if autopilot != 8 and mav_type not in (6, 18, 26, 27):
+            if autopilot != MAV_AUTOPILOT_INVALID and mav_type not in NOT_A_VEHICLE:
                 return r.sysid, r.compid
         counts[(r.sysid, r.compid)] = counts.get((r.sysid, r.compid), 0) + 1
     if not counts:
@@ -300,23 +270,62 @@ def _applies_to(fault: Fault, msgid: int) -> bool:
     return False
 
 
-def inject_bytes(
-    data: bytes, faults: Sequence[Fault], sysid: Optional[int] = None
-) -> Tuple[bytes, dict]:
-    """Apply ``faults`` to tlog bytes. Returns (new bytes, report for the sidecar)."""
-    records = split_tlog(data)
-    n_frames = sum(1 for r in records if r.is_frame)
-    if n_frames == 0:
-        raise InputError("no MAVLink frames found: not a tlog")
-    target, target_comp = _detect_vehicle(data, records, sysid)
-    decoder = mav2.MAVLink(None)
-    decoder.robust_parsing = True
-    states = [
-        _FaultState(f, i, f.boot, np.random.default_rng([f.seed, i]), {}, {}) for i, f in enumerate(faults)
-    ]
-    reboots = [s for s in states if s.fault.kind == "reboot"]
-    # messages decoded even outside a window: attitude for accel faults, the
-    # rangefinder's max_distance, and the values a hold (freeze/stuck/no-fix) needs
+def reboot_jump_s(t_s: float) -> float:
+    """How far back the clock must step at vehicle time ``t_s`` to be a reboot:
+    ``max(1 s, min(10 s, t_s / 2))``; smaller steps back are jitter between
+    message types. (One message decides: the live clock, with
+    ``ingest.reboot_jump_s``, waits for several to confirm.)"""
+    return max(1.0, min(10.0, 0.5 * t_s))
+
+
+class _Timeline:
+    """The vehicle clock as the injector follows it (see the module docstring)."""
+
+    def __init__(self, autopilot_compid: Optional[int]):
+        self.compid = autopilot_compid
+        self.boot = 0
+        self.last_vt: Optional[float] = None
+        self.have_ms_clock = False
+
+    def time_of(self, data: bytes, rec: Record) -> Optional[float]:
+        """Vehicle time of one of the vehicle's frames (the clock advanced by it)."""
+        vt = self.last_vt
+        own = _vehicle_time_s(data, rec)
+        if own is None:
+            return vt
+        own_vt, is_ms = own
+        clock_msg = rec.compid == self.compid and rec.msgid not in GNSS_IDS
+        if clock_msg and (is_ms or not self.have_ms_clock):
+            # the autopilot's time_boot_ms: drives vehicle time and reboot detection
+            if self.last_vt is not None and self.last_vt - own_vt > reboot_jump_s(self.last_vt):
+                self.boot += 1
+            self.last_vt = vt = own_vt
+            self.have_ms_clock = self.have_ms_clock or is_ms
+        elif self.last_vt is not None and abs(own_vt - self.last_vt) < 1.0:
+            vt = own_vt  # a sample time (time_usec) on the same clock
+        return vt
+
+
+@dataclass
+class _Seen:
+    """What the vehicle's frames have said so far, for the faults that need it."""
+
+    attitude: Tuple[float, float] = (0.0, 0.0)  # roll, pitch (rad)
+    rng_max_m: Optional[float] = None  # the downward DISTANCE_SENSOR's max_distance
+    originals: Dict[Tuple[int, str], float] = field(default_factory=dict)  # latest (msgid, field) value
+
+    def note(self, msg, msgid: int) -> Dict[str, float]:
+        """Remember attitude and range limit; returns the held fields' values before any fault."""
+        if msgid == ID_ATTITUDE:
+            self.attitude = (msg.roll, msg.pitch)
+        if msgid == ID_DISTANCE_SENSOR and msg.orientation == MAV_SENSOR_ROTATION_PITCH_270:
+            self.rng_max_m = msg.max_distance / 100.0
+        return {k: getattr(msg, k) for k in _HELD_FIELDS if hasattr(msg, k)}
+
+
+def _watched_ids(faults: Sequence[Fault]) -> set:
+    """Messages decoded even outside a window: attitude for accel faults, the
+    rangefinder's max_distance, and the values a hold (freeze/stuck/no-fix) needs."""
     watch = set()
     for f in faults:
         if f.kind == "accel_bias_step":
@@ -325,113 +334,64 @@ def inject_bytes(
             watch.add(ID_DISTANCE_SENSOR)
         if f.kind in ("baro_freeze", "rng_stuck", "gnss_dropout"):
             watch.update(mid for mid in GNSS_IDS + RNG_IDS + BARO_IDS if _applies_to(f, mid))
+    return watch
 
-    out: List[bytes] = []
-    boot = 0
-    last_vt: Optional[float] = None
-    have_ms_clock = False
-    last_att = (0.0, 0.0)
-    last_rng_max_m: Optional[float] = None
-    originals: Dict[Tuple[int, str], float] = {}  # latest original value per (msgid, field), vehicle only
-    signed_stripped = 0
-    junk = 0
 
-    for rec in records:
-        raw = data[rec.start : rec.end]
-        ours = rec.is_frame and rec.sysid == target
-        vt = last_vt
-        if ours:
-            own = _vehicle_time_s(data, rec)
-            if own is not None:
-                own_vt, is_ms = own
-                clock_msg = rec.compid == target_comp and rec.msgid not in GNSS_IDS
-                if clock_msg and (is_ms or not have_ms_clock):
-                    # the autopilot's time_boot_ms: drives vehicle time and reboot detection
-                    if last_vt is not None and last_vt - own_vt > max(1.0, min(10.0, 0.5 * last_vt)):
-                        boot += 1
-                    last_vt = vt = own_vt
-                    have_ms_clock = have_ms_clock or is_ms
-                elif last_vt is not None and abs(own_vt - last_vt) < 1.0:
-                    vt = own_vt  # a sample time (time_usec) on the same clock
-        if not rec.is_frame:
-            junk += 1
+def _in_window(states: Sequence[_FaultState], vt: Optional[float], boot: int) -> List[_FaultState]:
+    """The faults in their window at vehicle time ``vt`` (a fault's boot is the
+    first in which its onset is reached, unless it names one)."""
+    active: List[_FaultState] = []
+    if vt is None:
+        return active
+    for st in states:
+        f = st.fault
+        if st.boot is None and vt >= f.onset_s:
+            st.boot = boot
+        if st.boot == boot and f.onset_s <= vt < f.end_s:
+            active.append(st)
+    return active
 
-        # which faults are in their window for this record
-        active: List[_FaultState] = []
-        if vt is not None:
-            for st in states:
-                f = st.fault
-                if st.boot is None and vt >= f.onset_s:
-                    st.boot = boot
-                if st.boot == boot and f.onset_s <= vt < f.end_s:
-                    active.append(st)
 
-        # link loss / reboot: nothing arrives
-        drop = [st for st in active if st.fault.kind in ("link_loss", "reboot")]
-        if drop:
-            for st in drop:
-                st.touch(rec, vt)
-                st.dropped += 1
-            continue
+def _shift_boot_times(msg, shift_s: float) -> bool:
+    """Move a message's boot-time fields back by ``shift_s`` (after an injected
+    reboot the clock restarts); True if it has one."""
+    moved = False
+    if hasattr(msg, "time_boot_ms"):
+        msg.time_boot_ms = int(max(0, msg.time_boot_ms - round(shift_s * 1000)))
+        moved = True
+    if hasattr(msg, "time_usec") and msg.time_usec < _UNIX_US:
+        msg.time_usec = int(max(0, msg.time_usec - round(shift_s * 1e6)))
+        moved = True
+    return moved
 
-        if not ours:
-            out.append(raw)
-            continue
 
-        relevant = [st for st in active if _applies_to(st.fault, rec.msgid)]
-        shifting = [st for st in reboots if st.boot == boot and vt is not None and vt >= st.fault.end_s]
-        if not relevant and not shifting and rec.msgid not in watch:
-            out.append(raw)
-            continue
+def _fault_message(msg, rec: Record, vt, relevant, shifting, seen: _Seen) -> Tuple[bool, bool]:
+    """Apply the faults in window and the reboots' clock shifts to one decoded
+    message of the vehicle. Returns (dropped, changed)."""
+    before = seen.note(msg, rec.msgid)
+    dropped = changed = False
+    for st in relevant:
+        st.touch(rec, vt)
+        res = _apply(st.fault, st, msg, rec.msgid, vt, seen.originals, seen.attitude, seen.rng_max_m)
+        if res == "drop":
+            dropped = True
+            st.dropped += 1
+            break
+        if res:
+            changed = True
+            st.modified += 1
+    for key, value in before.items():
+        seen.originals[(rec.msgid, key)] = value
+    if dropped:
+        return True, False
+    for st in shifting:
+        if _shift_boot_times(msg, st.fault.onset_s):
+            changed = True
+            st.modified += 1
+    return False, changed
 
-        frame = raw[8:]
-        try:
-            msg = decoder.decode(bytearray(frame))
-        except Exception:  # a frame pymavlink refuses: keep it as it is
-            out.append(raw)
-            continue
 
-        if rec.msgid == ID_ATTITUDE:
-            last_att = (msg.roll, msg.pitch)
-        if rec.msgid == ID_DISTANCE_SENSOR and msg.orientation == 25:
-            last_rng_max_m = msg.max_distance / 100.0
-        before = {k: getattr(msg, k) for k in _HELD_FIELDS if hasattr(msg, k)}
-
-        dropped_here = False
-        changed = False
-        for st in relevant:
-            st.touch(rec, vt)
-            res = _apply(st.fault, st, msg, rec.msgid, vt, originals, last_att, last_rng_max_m)
-            if res == "drop":
-                dropped_here = True
-                st.dropped += 1
-                break
-            if res:
-                changed = True
-                st.modified += 1
-        for key, value in before.items():
-            originals[(rec.msgid, key)] = value
-        if dropped_here:
-            continue
-        for st in shifting:
-            shift = st.fault.onset_s
-            moved = False
-            if hasattr(msg, "time_boot_ms"):
-                msg.time_boot_ms = int(max(0, msg.time_boot_ms - round(shift * 1000)))
-                moved = True
-            if hasattr(msg, "time_usec") and msg.time_usec < _UNIX_US:
-                msg.time_usec = int(max(0, msg.time_usec - round(shift * 1e6)))
-                moved = True
-            if moved:
-                changed = True
-                st.modified += 1
-        if not changed:
-            out.append(raw)
-            continue
-        if rec.version == 2 and frame[2] & 0x01:
-            signed_stripped += 1
-        out.append(raw[:8] + reframe(frame, msg))
-
+def _report(target, target_comp, records, n_frames, junk, boots, signed_stripped, states) -> dict:
     report = {
         "generator": "mavnav inject",
         "sysid": target,
@@ -439,7 +399,7 @@ def inject_bytes(
         "records": len(records),
         "frames": n_frames,
         "junk_records": junk,
-        "boots_seen": boot + 1,
+        "boots_seen": boots,
         "signatures_stripped": signed_stripped,
         "clock": "onset_s/end_s: the input log's vehicle clock (time_boot_ms / time_usec) in boot 'boot'",
         "faults": [],
@@ -456,6 +416,78 @@ def inject_bytes(
             last_recv_unix_s=None if st.last_recv_us is None else st.last_recv_us / 1e6,
         )
         report["faults"].append(d)
+    return report
+
+
+class _Injector:
+    """The faults applied record by record to one log's vehicle (``sysid``, its
+    autopilot component ``compid``)."""
+
+    def __init__(self, faults: Sequence[Fault], sysid: Optional[int], compid: Optional[int]):
+        self.sysid = sysid
+        self.states = [
+            _FaultState(f, i, f.boot, np.random.default_rng([f.seed, i]), {}, {}) for i, f in enumerate(faults)
+        ]
+        self.reboots = [s for s in self.states if s.fault.kind == "reboot"]
+        self.watch = _watched_ids(faults)
+        self.clock = _Timeline(compid)
+        self.seen = _Seen()
+        self.decoder = mav2.MAVLink(None)
+        self.decoder.robust_parsing = True
+        self.junk = 0
+        self.signed_stripped = 0
+
+    def record(self, data: bytes, rec: Record) -> Optional[bytes]:
+        """The record as it goes out (itself, or re-framed), None if a fault removes it."""
+        raw = data[rec.start : rec.end]
+        ours = rec.is_frame and rec.sysid == self.sysid
+        vt = self.clock.time_of(data, rec) if ours else self.clock.last_vt
+        if not rec.is_frame:
+            self.junk += 1
+        active = _in_window(self.states, vt, self.clock.boot)
+        # link loss / reboot: nothing arrives
+        drop = [st for st in active if st.fault.kind in ("link_loss", "reboot")]
+        for st in drop:
+            st.touch(rec, vt)
+            st.dropped += 1
+        if drop:
+            return None
+        return self._vehicle_frame(raw, rec, vt, active) if ours else raw
+
+    def _vehicle_frame(self, raw: bytes, rec: Record, vt: Optional[float], active) -> Optional[bytes]:
+        boot = self.clock.boot
+        relevant = [st for st in active if _applies_to(st.fault, rec.msgid)]
+        shifting = [st for st in self.reboots if st.boot == boot and vt is not None and vt >= st.fault.end_s]
+        if not relevant and not shifting and rec.msgid not in self.watch:
+            return raw
+        frame = raw[8:]
+        try:
+            msg = self.decoder.decode(bytearray(frame))
+        except Exception:  # a frame pymavlink refuses: keep it as it is
+            return raw
+        dropped, changed = _fault_message(msg, rec, vt, relevant, shifting, self.seen)
+        if dropped:
+            return None
+        if not changed:
+            return raw
+        if rec.version == 2 and frame[2] & wire.IFLAG_SIGNED:
+            self.signed_stripped += 1
+        return raw[:8] + reframe(frame, msg)
+
+
+def inject_bytes(
+    data: bytes, faults: Sequence[Fault], sysid: Optional[int] = None
+) -> Tuple[bytes, dict]:
+    """Apply ``faults`` to tlog bytes. Returns (new bytes, report for the sidecar)."""
+    records = split_tlog(data)
+    n_frames = sum(1 for r in records if r.is_frame)
+    if n_frames == 0:
+        raise InputError("no MAVLink frames found: not a tlog")
+    target, target_comp = _detect_vehicle(data, records, sysid)
+    inj = _Injector(faults, target, target_comp)
+    out = [b for b in (inj.record(data, rec) for rec in records) if b is not None]
+    report = _report(target, target_comp, records, n_frames, inj.junk, inj.clock.boot + 1, inj.signed_stripped,
+                     inj.states)
     return b"".join(out), report
 
 
@@ -485,95 +517,120 @@ def _apply(f: Fault, st: _FaultState, msg, msgid: int, vt: float, originals, att
         st.counters[msgid] = c + 1
         return False if keeps(f, c) else "drop"
     if k.startswith("gnss_"):
-        if k in ("gnss_step", "gnss_ramp", "gnss_noise"):
-            dh = height_error_m(f, vt, st.rng)
-            d_mm = int(round(dh * 1000))
-            msg.alt = int(msg.alt + d_mm)
-            if getattr(msg, "alt_ellipsoid", 0):
-                msg.alt_ellipsoid = int(msg.alt_ellipsoid + d_mm)
-            return True
-        if k == "gnss_dropout":
-            if f.effective_mode == "silent":
-                return "drop"
-            for fld in ("alt", "lat", "lon", "alt_ellipsoid"):
-                if hasattr(msg, fld):
-                    setattr(msg, fld, int(_hold(st, originals, msgid, fld, getattr(msg, fld))))
-            msg.fix_type = 1
-            msg.satellites_visible = min(3, msg.satellites_visible)
-            msg.eph, msg.epv = 9999, 9999
-            if hasattr(msg, "v_acc"):
-                msg.v_acc, msg.h_acc = 99999, 99999
-            return True
+        return _apply_gnss(f, st, msg, msgid, vt, originals)
     if k.startswith("rng_"):
         if msgid == ID_DISTANCE_SENSOR:
-            if msg.orientation != 25:
-                return False
-            if k == "rng_dropout":
-                if f.effective_mode == "silent":
-                    return "drop"
-                msg.current_distance = min(65535, msg.max_distance + 1)
-                msg.signal_quality = 1
-            elif k == "rng_stuck":
-                if f.magnitude is None:
-                    msg.current_distance = int(_hold(st, originals, msgid, "current_distance", msg.current_distance))
-                    msg.signal_quality = int(_hold(st, originals, msgid, "signal_quality", msg.signal_quality))
-                else:
-                    msg.current_distance = int(min(65535, max(0, round(f.magnitude * 100))))
-            elif k == "rng_spikes":
-                if not spikes(f, st.rng):
-                    return False
-                msg.current_distance = int(min(65535, max(0, msg.current_distance + round(f.magnitude * 100))))
-            elif k == "rng_out_of_range":
-                msg.current_distance = int(min(65535, round(out_of_range_reading_m(f, msg.max_distance / 100.0) * 100)))
-            return True
-        # RANGEFINDER (ArduPilot), metres
-        if k == "rng_dropout":
-            if f.effective_mode == "silent":
-                return "drop"
-            msg.distance = (rng_max_m + 0.01) if rng_max_m is not None else 0.0
-        elif k == "rng_stuck":
-            msg.distance = _hold(st, originals, msgid, "distance", msg.distance) if f.magnitude is None else f.magnitude
-        elif k == "rng_spikes":
-            if not spikes(f, st.rng):
-                return False
-            msg.distance = msg.distance + f.magnitude
-        elif k == "rng_out_of_range":
-            msg.distance = out_of_range_reading_m(f, rng_max_m if rng_max_m is not None else msg.distance)
-        return True
+            return _apply_distance_sensor(f, st, msg, msgid, originals)
+        return _apply_rangefinder(f, st, msg, msgid, originals, rng_max_m)
     if k.startswith("baro_"):
-        if k == "baro_freeze":
-            if msgid == ID_HIGHRES_IMU:
-                msg.abs_pressure = _hold(st, originals, msgid, "abs_pressure", msg.abs_pressure)
-                msg.pressure_alt = _hold(st, originals, msgid, "pressure_alt", msg.pressure_alt)
-            else:
-                msg.press_abs = _hold(st, originals, msgid, "press_abs", msg.press_abs)
-            return True
-        dh = height_error_m(f, vt)
-        if msgid == ID_HIGHRES_IMU:
-            if not msg.abs_pressure > 0:
-                return False
-            msg.abs_pressure = _shift_pressure_hpa(msg.abs_pressure, dh)
-            msg.pressure_alt = msg.pressure_alt + dh
-        else:
-            msg.press_abs = _shift_pressure_hpa(msg.press_abs, dh)
-        return True
+        return _apply_baro(f, st, msg, msgid, vt, originals)
     if k == "accel_bias_step":
-        d = down_row_from_euler(att[0], att[1])
-        # f_up = -(down_row . f_b): adding -m * down_row to f_b adds m to f_up
-        dx, dy, dz = (-height_error_m(f, vt) * c for c in d)
-        if msgid == ID_HIGHRES_IMU:
-            msg.xacc, msg.yacc, msg.zacc = msg.xacc + dx, msg.yacc + dy, msg.zacc + dz
-        else:
-            to_mg = 1000.0 / G_MILLI
+        return _apply_accel(f, msg, msgid, vt, att)
+    return False
 
-            def clip(v):
-                return int(max(-32768, min(32767, round(v))))
 
-            msg.xacc = clip(msg.xacc + dx * to_mg)
-            msg.yacc = clip(msg.yacc + dy * to_mg)
-            msg.zacc = clip(msg.zacc + dz * to_mg)
+def _apply_gnss(f: Fault, st: _FaultState, msg, msgid: int, vt: float, originals) -> object:
+    k = f.kind
+    if k in ("gnss_step", "gnss_ramp", "gnss_noise"):
+        dh = height_error_m(f, vt, st.rng)
+        d_mm = int(round(dh * 1000))
+        msg.alt = int(msg.alt + d_mm)
+        if getattr(msg, "alt_ellipsoid", 0):
+            msg.alt_ellipsoid = int(msg.alt_ellipsoid + d_mm)
+        return True
+    if k == "gnss_dropout":
+        if f.effective_mode == "silent":
+            return "drop"
+        for fld in ("alt", "lat", "lon", "alt_ellipsoid"):
+            if hasattr(msg, fld):
+                setattr(msg, fld, int(_hold(st, originals, msgid, fld, getattr(msg, fld))))
+        msg.fix_type = 1
+        msg.satellites_visible = min(3, msg.satellites_visible)
+        msg.eph, msg.epv = 9999, 9999
+        if hasattr(msg, "v_acc"):
+            msg.v_acc, msg.h_acc = 99999, 99999
         return True
     return False
+
+
+def _apply_distance_sensor(f: Fault, st: _FaultState, msg, msgid: int, originals) -> object:
+    """DISTANCE_SENSOR (centimetres), the downward one only."""
+    k = f.kind
+    if msg.orientation != MAV_SENSOR_ROTATION_PITCH_270:
+        return False
+    if k == "rng_dropout":
+        if f.effective_mode == "silent":
+            return "drop"
+        msg.current_distance = min(65535, msg.max_distance + 1)
+        msg.signal_quality = 1
+    elif k == "rng_stuck":
+        if f.magnitude is None:
+            msg.current_distance = int(_hold(st, originals, msgid, "current_distance", msg.current_distance))
+            msg.signal_quality = int(_hold(st, originals, msgid, "signal_quality", msg.signal_quality))
+        else:
+            msg.current_distance = int(min(65535, max(0, round(f.magnitude * 100))))
+    elif k == "rng_spikes":
+        if not spikes(f, st.rng):
+            return False
+        msg.current_distance = int(min(65535, max(0, msg.current_distance + round(f.magnitude * 100))))
+    elif k == "rng_out_of_range":
+        msg.current_distance = int(min(65535, round(out_of_range_reading_m(f, msg.max_distance / 100.0) * 100)))
+    return True
+
+
+def _apply_rangefinder(f: Fault, st: _FaultState, msg, msgid: int, originals, rng_max_m) -> object:
+    """RANGEFINDER (ArduPilot), metres."""
+    k = f.kind
+    if k == "rng_dropout":
+        if f.effective_mode == "silent":
+            return "drop"
+        msg.distance = (rng_max_m + 0.01) if rng_max_m is not None else 0.0
+    elif k == "rng_stuck":
+        msg.distance = _hold(st, originals, msgid, "distance", msg.distance) if f.magnitude is None else f.magnitude
+    elif k == "rng_spikes":
+        if not spikes(f, st.rng):
+            return False
+        msg.distance = msg.distance + f.magnitude
+    elif k == "rng_out_of_range":
+        msg.distance = out_of_range_reading_m(f, rng_max_m if rng_max_m is not None else msg.distance)
+    return True
+
+
+def _apply_baro(f: Fault, st: _FaultState, msg, msgid: int, vt: float, originals) -> object:
+    if f.kind == "baro_freeze":
+        if msgid == ID_HIGHRES_IMU:
+            msg.abs_pressure = _hold(st, originals, msgid, "abs_pressure", msg.abs_pressure)
+            msg.pressure_alt = _hold(st, originals, msgid, "pressure_alt", msg.pressure_alt)
+        else:
+            msg.press_abs = _hold(st, originals, msgid, "press_abs", msg.press_abs)
+        return True
+    dh = height_error_m(f, vt)
+    if msgid == ID_HIGHRES_IMU:
+        if not msg.abs_pressure > 0:
+            return False
+        msg.abs_pressure = _shift_pressure_hpa(msg.abs_pressure, dh)
+        msg.pressure_alt = msg.pressure_alt + dh
+    else:
+        msg.press_abs = _shift_pressure_hpa(msg.press_abs, dh)
+    return True
+
+
+def _apply_accel(f: Fault, msg, msgid: int, vt: float, att) -> object:
+    d = down_row_from_euler(att[0], att[1])
+    # f_up = -(down_row . f_b): adding -m * down_row to f_b adds m to f_up
+    dx, dy, dz = (-height_error_m(f, vt) * c for c in d)
+    if msgid == ID_HIGHRES_IMU:
+        msg.xacc, msg.yacc, msg.zacc = msg.xacc + dx, msg.yacc + dy, msg.zacc + dz
+    else:
+        to_mg = 1000.0 / G0_MPS2
+
+        def clip(v):
+            return int(max(-32768, min(32767, round(v))))
+
+        msg.xacc = clip(msg.xacc + dx * to_mg)
+        msg.yacc = clip(msg.yacc + dy * to_mg)
+        msg.zacc = clip(msg.zacc + dz * to_mg)
+    return True
 
 
 def inject_file(in_path, out_path, faults: Sequence[Fault], sysid: Optional[int] = None) -> dict:

@@ -31,6 +31,7 @@ from ..config import (
     read_yaml,
     validation_error,
 )
+from ..constants import G0_MPS2
 from ..errors import ConfigError
 
 
@@ -128,7 +129,7 @@ class SimInsConfig(_Section):
     bias_up_mps2: float = 0.0  # da: constant bias of the vertical specific force
     body_bias_mps2: Tuple[float, float, float] = (0.0, 0.0, 0.0)  # extra FRD bias
     gyro_sigma_radps: float = Field(0.003, ge=0)
-    gravity_mps2: float = Field(9.80665, gt=0)
+    gravity_mps2: float = Field(G0_MPS2, gt=0)
 
 
 class SimBaroConfig(_Section):

@@ -166,41 +166,47 @@ def _kin_arrays(k: Kinematics):
 # ---------------------------------------------------------------- main entry
 
 
-def simulate(scenario: Scenario, seed: Optional[int] = None, *, encode: bool = True) -> SimResult:
-    """Simulate ``scenario`` with ``seed`` (default: the scenario's).
+@dataclass
+class _Run:
+    """One simulation's inputs and its per-message streams, as the steps below fill them."""
 
-    Returns a :class:`SimResult` with the tlog bytes (empty when ``encode`` is
-    False), the truth table, the fault windows and the per-message streams.
-    """
-    t_start = time.perf_counter()
-    scn = scenario
-    seed = scn.seed if seed is None else int(seed)
-    dur = scn.duration_s
-    off = scn.boot_time_at_start_s
-    sens = scn.sensors
-    traj = TruthTrajectory(scn)
+    scn: Scenario
+    seed: int
+    traj: TruthTrajectory
+    streams: Dict[str, dict]
+
+    @property
+    def off(self) -> float:  # scenario time of simulation time 0
+        return self.scn.boot_time_at_start_s
+
+    @property
+    def faults(self) -> Sequence[Fault]:
+        return self.scn.faults
+
+    def sc(self, name: str) -> np.ndarray:
+        """Scenario-clock times of a stream."""
+        return self.streams[name]["t_sim"] + self.off
+
+
+def _message_streams(scn: Scenario, seed: int) -> Dict[str, dict]:
+    """Sample times per message type, in simulation time."""
     rates = scn.rates()
-    faults: Sequence[Fault] = scn.faults
-
-    reboots = sorted((f for f in faults if f.kind == "reboot"), key=lambda f: f.onset_s)
-    clock = Clock(off, tuple(f.onset_s - off for f in reboots))
-
     rng_t = _rng(seed, _S_TIMES)
     streams: Dict[str, dict] = {}
     for name in MESSAGE_TYPES:
         r = rates[name]
         if r > 0:
             jitter = scn.link.sample_jitter if name not in ("HEARTBEAT", "SYSTEM_TIME", "HOME_POSITION") else 0.0
-            t = _sample_times(r, dur, rng_t, jitter)
+            t = _sample_times(r, scn.duration_s, rng_t, jitter)
             if t.size:
                 streams[name] = {"t_sim": t, "interval_s": 1.0 / r}
+    return streams
 
-    def sc(name: str) -> np.ndarray:  # scenario-clock times of a stream
-        return streams[name]["t_sim"] + off
 
+def _imu(r: _Run) -> None:
+    """The IMUs: specific force with bias, noise and accelerometer faults, rates, magnetometer."""
+    seed, sens, traj, streams, faults = r.seed, r.scn.sensors, r.traj, r.streams, r.faults
     g = sens.ins.gravity_mps2
-
-    # ---- IMU
     for name in IMU_TYPES:
         if name not in streams:
             continue
@@ -210,7 +216,7 @@ def simulate(scenario: Scenario, seed: Optional[int] = None, *, encode: bool = T
         bias_up = np.full(s["t_sim"].size, sens.ins.bias_up_mps2)
         for f in faults:
             if f.kind == "accel_bias_step":
-                bias_up = bias_up + additive_offset(f, sc(name))
+                bias_up = bias_up + additive_offset(f, r.sc(name))
         rng = _rng(seed, _S_IMU[name])
         q = accel_noise_std(sens.ins.sigma_a_mps2, sens.ins.alpha_a_per_s, s["interval_s"])
         s["f_b"] = specific_force_body(m_nb, acc_n, g, bias_up, q, sens.ins.body_bias_mps2, rng)
@@ -223,7 +229,11 @@ def simulate(scenario: Scenario, seed: Optional[int] = None, *, encode: bool = T
         s["temperature_c"] = IMU_TEMPERATURE_C
         s["noise_std_mps2"] = q
 
-    # ---- barometer: samples at SCALED_PRESSURE times (else an internal 25 Hz grid)
+
+def _baro(r: _Run) -> dict:
+    """Barometer: samples at SCALED_PRESSURE times (else an internal 25 Hz grid)."""
+    seed, sens, traj, streams, faults, off, scn = r.seed, r.scn.sensors, r.traj, r.streams, r.faults, r.off, r.scn
+    dur = scn.duration_s
     if "SCALED_PRESSURE" in streams:
         t_baro = streams["SCALED_PRESSURE"]["t_sim"]
     else:
@@ -259,99 +269,123 @@ def simulate(scenario: Scenario, seed: Optional[int] = None, *, encode: bool = T
         s["fields_updated"] = np.where(new, 0x1FF | 0x200 | 0x800 | 0x1000, 0x1FF).astype(np.int64)
         s["temperature_c"] = np.full(s["t_sim"].size, IMU_TEMPERATURE_C)
 
-    # ---- GNSS
-    if "GPS_RAW_INT" in streams:
-        s = streams["GPS_RAW_INT"]
-        t = s["t_sim"]
-        kg = traj.sample(t)
-        gc = sens.gnss
-        white = gc.sigma_z_m * _rng(seed, _S_GNSS_WHITE).standard_normal(t.size)
-        corr = gauss_markov(t, gc.correlated_sigma_m, 1.0 / gc.correlated_tau_s, _rng(seed, _S_GNSS_GM))
-        alt = scn.home.alt_msl_m + kg.height_m + white + corr
-        n = t.size
-        fix = np.full(n, gc.fix_type, dtype=np.int64)
-        sats = np.full(n, gc.satellites, dtype=np.int64)
-        v_acc_m = gc.v_acc_m if gc.v_acc_m is not None else math.hypot(gc.sigma_z_m, gc.correlated_sigma_m)
-        v_acc = np.full(n, int(round(max(v_acc_m, 0.001) * 1000)), dtype=np.int64)
-        h_acc = np.full(n, int(round(max(0.6 * v_acc_m, 0.001) * 1000)), dtype=np.int64)
-        eph = np.full(n, 70, dtype=np.int64)
-        epv = np.full(n, 110, dtype=np.int64)
-        pos_n, pos_e = kg.pos_n_m.copy(), kg.pos_e_m.copy()
-        s["gnss_error_m"] = white + corr
-        for fi, f in enumerate(faults):
-            if f.kind in ("gnss_step", "gnss_ramp"):
-                alt = alt + additive_offset(f, t + off)
-            elif f.kind == "gnss_noise":
-                m = window_mask(f, t + off)
-                alt = alt + np.where(m, height_error_m(f, t + off, _rng(seed, _S_FAULT + fi)), 0.0)
-        s["sent"] = np.ones(n, dtype=bool)
-        for f in faults:
-            if f.kind == "gnss_dropout":
-                m = window_mask(f, t + off)
-                if f.effective_mode == "silent":
-                    s["sent"] &= ~m
-                else:
-                    alt = _hold_values(alt, m)
-                    pos_n, pos_e = _hold_values(pos_n, m), _hold_values(pos_e, m)
-                    fix[m], sats[m] = 1, 3
-                    v_acc[m], h_acc[m] = 99999, 99999
-                    eph[m], epv[m] = 9999, 9999
-        s.update(
-            alt_msl_m=alt, fix_type=fix, satellites=sats, v_acc_mm=v_acc, h_acc_mm=h_acc, eph=eph, epv=epv,
-            pos_n_m=pos_n, pos_e_m=pos_e,
-            ground_speed_mps=np.hypot(kg.vel_n_mps, kg.vel_e_mps),
-            cog_deg=np.degrees(np.arctan2(kg.vel_e_mps, kg.vel_n_mps)) % 360.0,
-        )
+    return baro
 
-    # ---- rangefinder: samples at DISTANCE_SENSOR times (else RANGEFINDER's)
-    rng_series: dict = {}
+
+def _gnss(r: _Run) -> None:
+    seed, traj, streams, off, scn = r.seed, r.traj, r.streams, r.off, r.scn
+    if "GPS_RAW_INT" not in streams:
+        return
+    s = streams["GPS_RAW_INT"]
+    t = s["t_sim"]
+    kg = traj.sample(t)
+    gc = scn.sensors.gnss
+    white = gc.sigma_z_m * _rng(seed, _S_GNSS_WHITE).standard_normal(t.size)
+    corr = gauss_markov(t, gc.correlated_sigma_m, 1.0 / gc.correlated_tau_s, _rng(seed, _S_GNSS_GM))
+    alt = scn.home.alt_msl_m + kg.height_m + white + corr
+    n = t.size
+    fix = np.full(n, gc.fix_type, dtype=np.int64)
+    sats = np.full(n, gc.satellites, dtype=np.int64)
+    v_acc_m = gc.v_acc_m if gc.v_acc_m is not None else math.hypot(gc.sigma_z_m, gc.correlated_sigma_m)
+    v_acc = np.full(n, int(round(max(v_acc_m, 0.001) * 1000)), dtype=np.int64)
+    h_acc = np.full(n, int(round(max(0.6 * v_acc_m, 0.001) * 1000)), dtype=np.int64)
+    eph = np.full(n, 70, dtype=np.int64)
+    epv = np.full(n, 110, dtype=np.int64)
+    pos_n, pos_e = kg.pos_n_m.copy(), kg.pos_e_m.copy()
+    s["gnss_error_m"] = white + corr
+    alt = _gnss_offsets(r, alt, t + off)
+    s["sent"] = np.ones(n, dtype=bool)
+    for f in r.faults:
+        if f.kind == "gnss_dropout":
+            m = window_mask(f, t + off)
+            if f.effective_mode == "silent":
+                s["sent"] &= ~m
+            else:
+                alt = _hold_values(alt, m)
+                pos_n, pos_e = _hold_values(pos_n, m), _hold_values(pos_e, m)
+                fix[m], sats[m] = 1, 3
+                v_acc[m], h_acc[m] = 99999, 99999
+                eph[m], epv[m] = 9999, 9999
+    s.update(
+        alt_msl_m=alt, fix_type=fix, satellites=sats, v_acc_mm=v_acc, h_acc_mm=h_acc, eph=eph, epv=epv,
+        pos_n_m=pos_n, pos_e_m=pos_e,
+        ground_speed_mps=np.hypot(kg.vel_n_mps, kg.vel_e_mps),
+        cog_deg=np.degrees(np.arctan2(kg.vel_e_mps, kg.vel_n_mps)) % 360.0,
+    )
+
+
+def _gnss_offsets(r: _Run, alt: np.ndarray, t_scn: np.ndarray) -> np.ndarray:
+    """The GNSS altitude with the step, ramp and noise faults added."""
+    for fi, f in enumerate(r.faults):
+        if f.kind in ("gnss_step", "gnss_ramp"):
+            alt = alt + additive_offset(f, t_scn)
+        elif f.kind == "gnss_noise":
+            m = window_mask(f, t_scn)
+            alt = alt + np.where(m, height_error_m(f, t_scn, _rng(r.seed, _S_FAULT + fi)), 0.0)
+    return alt
+
+
+def _rangefinder(r: _Run) -> dict:
+    """Rangefinder: samples at DISTANCE_SENSOR times (else RANGEFINDER's)."""
+    seed, traj, streams, off, scn = r.seed, r.traj, r.streams, r.off, r.scn
     rng_primary = "DISTANCE_SENSOR" if "DISTANCE_SENSOR" in streams else ("RANGEFINDER" if "RANGEFINDER" in streams else None)
-    if rng_primary is not None:
-        rf = sens.rangefinder
-        t_r = streams[rng_primary]["t_sim"]
-        kr = traj.sample(t_r)
-        cos_tilt = np.cos(kr.roll_rad) * np.cos(kr.pitch_rad)
-        agl = kr.height_m
-        if scn.terrain:
-            agl = np.maximum(agl - ground_height_m(scn.terrain, t_r + off), 0.0)
-        slant = agl / cos_tilt
-        reading = slant + rf.sigma_m * _rng(seed, _S_RNG).standard_normal(t_r.size)
-        valid = (reading >= rf.min_m) & (reading <= rf.max_m)
-        reading = np.where(valid, reading, np.clip(reading, rf.min_m - 0.01, rf.max_m + 0.01))
-        quality = np.where(valid, rf.quality, rf.out_of_range_quality).astype(np.int64)
-        silent = np.zeros(t_r.size, dtype=bool)
-        for fi, f in enumerate(faults):
-            m = window_mask(f, t_r + off)
-            if f.kind == "rng_dropout":
-                if f.effective_mode == "silent":
-                    silent |= m
-                else:
-                    reading = np.where(m, rf.max_m + 0.01, reading)
-                    quality = np.where(m, 1, quality)
-            elif f.kind == "rng_stuck":
-                if f.magnitude is None:
-                    reading = _hold_values(reading, m)
-                    quality = _hold_values(quality, m)
-                else:
-                    reading = np.where(m, f.magnitude, reading)
-                    quality = np.where(m, rf.quality, quality)
-            elif f.kind == "rng_spikes":
-                hit = m & spikes(f, _rng(seed, _S_FAULT + fi), t_r.size)
-                reading = np.where(hit, reading + f.magnitude, reading)
-            elif f.kind == "rng_out_of_range":
-                reading = np.where(m, out_of_range_reading_m(f, rf.max_m), reading)
-        rng_series = {"t_sim": t_r, "range_m": reading, "quality": quality, "slant_true_m": slant}
-        for name in ("DISTANCE_SENSOR", "RANGEFINDER"):
-            if name not in streams:
-                continue
-            s = streams[name]
-            j = np.maximum(hold_latest(t_r, s["t_sim"]), 0)
-            s["range_m"] = reading[j]
-            s["quality"] = quality[j]
-            s["sent"] = ~silent[j]
-            s["slant_true_m"] = slant[j]
+    if rng_primary is None:
+        return {}
+    rf = scn.sensors.rangefinder
+    t_r = streams[rng_primary]["t_sim"]
+    kr = traj.sample(t_r)
+    cos_tilt = np.cos(kr.roll_rad) * np.cos(kr.pitch_rad)
+    agl = kr.height_m
+    if scn.terrain:
+        agl = np.maximum(agl - ground_height_m(scn.terrain, t_r + off), 0.0)
+    slant = agl / cos_tilt
+    reading = slant + rf.sigma_m * _rng(seed, _S_RNG).standard_normal(t_r.size)
+    valid = (reading >= rf.min_m) & (reading <= rf.max_m)
+    reading = np.where(valid, reading, np.clip(reading, rf.min_m - 0.01, rf.max_m + 0.01))
+    quality = np.where(valid, rf.quality, rf.out_of_range_quality).astype(np.int64)
+    reading, quality, silent = _rangefinder_faults(r, t_r + off, reading, quality)
+    for name in ("DISTANCE_SENSOR", "RANGEFINDER"):
+        if name not in streams:
+            continue
+        s = streams[name]
+        j = np.maximum(hold_latest(t_r, s["t_sim"]), 0)
+        s["range_m"] = reading[j]
+        s["quality"] = quality[j]
+        s["sent"] = ~silent[j]
+        s["slant_true_m"] = slant[j]
+    return {"t_sim": t_r, "range_m": reading, "quality": quality, "slant_true_m": slant}
 
-    # ---- attitude
+
+def _rangefinder_faults(r: _Run, t_scn: np.ndarray, reading: np.ndarray, quality: np.ndarray):
+    """(reading, quality, silent) with the rangefinder faults applied."""
+    rf = r.scn.sensors.rangefinder
+    silent = np.zeros(t_scn.size, dtype=bool)
+    for fi, f in enumerate(r.faults):
+        m = window_mask(f, t_scn)
+        if f.kind == "rng_dropout":
+            if f.effective_mode == "silent":
+                silent |= m
+            else:
+                reading = np.where(m, rf.max_m + 0.01, reading)
+                quality = np.where(m, 1, quality)
+        elif f.kind == "rng_stuck":
+            if f.magnitude is None:
+                reading = _hold_values(reading, m)
+                quality = _hold_values(quality, m)
+            else:
+                reading = np.where(m, f.magnitude, reading)
+                quality = np.where(m, rf.quality, quality)
+        elif f.kind == "rng_spikes":
+            hit = m & spikes(f, _rng(r.seed, _S_FAULT + fi), t_scn.size)
+            reading = np.where(hit, reading + f.magnitude, reading)
+        elif f.kind == "rng_out_of_range":
+            reading = np.where(m, out_of_range_reading_m(f, rf.max_m), reading)
+    return reading, quality, silent
+
+
+def _attitude(r: _Run) -> None:
+    """ATTITUDE and ATTITUDE_QUATERNION: truth plus noise."""
+    seed, sens, traj, streams = r.seed, r.scn.sensors, r.traj, r.streams
     rng_a = _rng(seed, _S_ATT)
     for name in ("ATTITUDE", "ATTITUDE_QUATERNION"):
         if name not in streams:
@@ -371,7 +405,10 @@ def simulate(scenario: Scenario, seed: Optional[int] = None, *, encode: bool = T
         if name == "ATTITUDE_QUATERNION":
             s["quat"] = np.array([frames.quat_from_euler(a, b, c) for a, b, c in zip(roll, pitch, yaw)])
 
-    # ---- the autopilot's own estimate: truth + slow Gauss-Markov error (10 Hz grid)
+
+def _estimate(r: _Run) -> None:
+    """The autopilot's own estimate: truth + slow Gauss-Markov error (10 Hz grid)."""
+    seed, sens, traj, streams, dur = r.seed, r.scn.sensors, r.traj, r.streams, r.scn.duration_s
     est_names = [nm for nm in ("GLOBAL_POSITION_INT", "LOCAL_POSITION_NED") if nm in streams]
     if est_names:
         t_grid = np.arange(0.0, dur + 0.1, 0.1)
@@ -385,8 +422,11 @@ def simulate(scenario: Scenario, seed: Optional[int] = None, *, encode: bool = T
                 vel_n_mps=ke.vel_n_mps, vel_e_mps=ke.vel_e_mps, yaw_rad=ke.yaw_rad, estimate_error_m=err,
             )
 
-    # ---- what is sent and received
-    for name, s in streams.items():
+
+def _sent_and_received(r: _Run) -> None:
+    """Which messages are sent (reboots, rate drops, silent dropouts) and received (link losses)."""
+    off, faults = r.off, r.faults
+    for name, s in r.streams.items():
         t = s["t_sim"]
         sent = s.get("sent", np.ones(t.size, dtype=bool)).copy()
         recv = np.ones(t.size, dtype=bool)
@@ -401,9 +441,13 @@ def simulate(scenario: Scenario, seed: Optional[int] = None, *, encode: bool = T
                 sent &= ~(m & ~keeps(f, j))
         s["sent"] = sent
         s["received"] = sent & recv
-    t_models = time.perf_counter()
 
-    # ---- clock, sequence numbers, receive times, global order
+
+def _link(r: _Run, clock: Clock) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Clock, sequence numbers, receive times and global order: fills each stream's
+    ``boot``, ``t_vehicle_s``, ``recv_unix_us`` and ``seq``; returns the global
+    order's message types and indices, and whether each is received."""
+    scn, seed, streams = r.scn, r.seed, r.streams
     names = list(MESSAGE_TYPES)
     present = [nm for nm in names if nm in streams]
     all_t = np.concatenate([streams[nm]["t_sim"] for nm in present]) if present else np.zeros(0)
@@ -446,13 +490,11 @@ def simulate(scenario: Scenario, seed: Optional[int] = None, *, encode: bool = T
         streams[nm]["t_vehicle_s"] = tv_by[nm]
         streams[nm]["recv_unix_us"] = recv_by[nm]
         streams[nm]["seq"] = seq_by[nm]
-    keep = recv_o
-    tlog = b""
-    if encode:
-        tlog = encode_tlog(scn, streams, type_o[keep], idx_o[keep])
-    t_enc = time.perf_counter()
+    return type_o, idx_o, recv_o
 
-    truth = _truth_table(scn, traj, clock, faults)
+
+def _fault_descriptions(faults: Sequence[Fault], clock: Clock, off: float) -> List[dict]:
+    """The sidecar's fault entries, with onsets in simulation and vehicle time."""
     fault_desc = []
     for f in faults:
         d = describe_fault(f)
@@ -461,6 +503,42 @@ def simulate(scenario: Scenario, seed: Optional[int] = None, *, encode: bool = T
         d["boot_at_onset"] = int(clock.boot(np.array([on_sim]))[0])
         d["onset_vehicle_s"] = float(clock.vehicle_time(np.array([on_sim]))[0])
         fault_desc.append(d)
+    return fault_desc
+
+
+def simulate(scenario: Scenario, seed: Optional[int] = None, *, encode: bool = True) -> SimResult:
+    """Simulate ``scenario`` with ``seed`` (default: the scenario's).
+
+    Returns a :class:`SimResult` with the tlog bytes (empty when ``encode`` is
+    False), the truth table, the fault windows and the per-message streams.
+    """
+    t_start = time.perf_counter()
+    scn = scenario
+    seed = scn.seed if seed is None else int(seed)
+    off = scn.boot_time_at_start_s
+    traj = TruthTrajectory(scn)
+    faults: Sequence[Fault] = scn.faults
+    reboots = sorted((f for f in faults if f.kind == "reboot"), key=lambda f: f.onset_s)
+    clock = Clock(off, tuple(f.onset_s - off for f in reboots))
+
+    r = _Run(scn, seed, traj, _message_streams(scn, seed))
+    _imu(r)
+    baro = _baro(r)
+    _gnss(r)
+    rng_series = _rangefinder(r)
+    _attitude(r)
+    _estimate(r)
+    _sent_and_received(r)
+    t_models = time.perf_counter()
+
+    type_o, idx_o, keep = _link(r, clock)
+    tlog = b""
+    if encode:
+        tlog = encode_tlog(scn, r.streams, type_o[keep], idx_o[keep])
+    t_enc = time.perf_counter()
+
+    truth = _truth_table(scn, traj, clock, faults)
+    fault_desc = _fault_descriptions(faults, clock, off)
     t_end = time.perf_counter()
     n_rec = int(keep.sum())
     return SimResult(
@@ -469,7 +547,7 @@ def simulate(scenario: Scenario, seed: Optional[int] = None, *, encode: bool = T
         tlog=tlog,
         truth=truth,
         faults=tuple(fault_desc),
-        streams=streams,
+        streams=r.streams,
         trajectory=traj,
         clock=clock,
         timings_s={

@@ -45,6 +45,7 @@ import numpy as np
 
 from ...atmosphere import heights_from_pressures_m
 from ...config import IngestConfig
+from ...constants import G0_MPS2
 from ...errors import InputError
 from ...jit import njit
 from ...samples import (
@@ -64,7 +65,6 @@ from .head import read_head
 from .record import OnboardRecord
 
 PathLike = Union[str, Path]
-G0_MPS2 = 9.80665
 MAX_SPECIFIC_FORCE_MPS2 = 50 * G0_MPS2
 ULOG_MAGIC = b"ULog\x01\x12\x35"
 

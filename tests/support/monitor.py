@@ -10,9 +10,9 @@ import numpy as np
 from mavnav.config import config_from_dict
 from mavnav.pipeline import run
 from mavnav.sinks.base import Sink
-from mavnav.synthetic import Schedule, TrueSensors, paper_flight
+from tests.support.synthetic import Schedule, TrueSensors, paper_flight
 
-from fault_helpers import apply_fault
+from tests.support.faults import apply_fault
 
 T0_US = 1_000_000
 SENSORS = TrueSensors(sigma_a_mps2=0.1, alpha_a_per_s=1.0, sigma_bb_m=0.5, gamma_bb_per_s=1.0, sigma_z_m=1.0,

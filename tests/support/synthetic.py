@@ -1,13 +1,14 @@
 """Seeded sample streams from the paper's sensor models, with truth.
 
 This produces :mod:`mavnav.samples` objects directly (no MAVLink), for the
-estimator's consistency tests and benchmarks; :mod:`mavnav.sim` writes real
+estimator's consistency tests and ``bench/estimator.py`` (test data, not
+shipped in the package); :mod:`mavnav.sim` is the simulator that writes real
 MAVLink telemetry. Truth follows the filter's own discrete model on the IMU
 grid (zero-order hold of the true acceleration), so normalised-error
 statistics have exact expectations when every IMU sample is also a baro
 epoch, and close ones otherwise.
 
-Sensors (MODEL.md section 2): IMU ``f_up = a + g + da + q n`` with
+Sensors (``../shared/docs/MODEL.md`` section 2): IMU ``f_up = a + g + da + q n`` with
 ``q = sigma_a sqrt(2 / (alpha_a tau))`` per IMU interval ``tau``; baro
 ``H + dH + u`` with ``u`` first-order Gauss-Markov, exactly discretised
 between baro samples; GNSS ``H + sigma_z n``; rangefinder ``H + sigma_r n``.
@@ -21,9 +22,9 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
-from .samples import BaroHeight, GnssHeight, RangeHeight, SpecificForceUp
+from mavnav.constants import G0_MPS2
+from mavnav.samples import BaroHeight, GnssHeight, RangeHeight, SpecificForceUp
 
-G_MPS2 = 9.80665
 
 
 @dataclass(frozen=True)
@@ -107,7 +108,7 @@ def paper_flight(
     # IMU noise over each hold interval (the last sample gets the nominal interval)
     tau_f = np.concatenate([tau, [schedule.imu_dt_s]])
     q = s.sigma_a_mps2 * np.sqrt(2.0 / (s.alpha_a_per_s * tau_f))
-    f_up = a + G_MPS2 + s.acc_bias_mps2 + q * rng.standard_normal(n)
+    f_up = a + G0_MPS2 + s.acc_bias_mps2 + q * rng.standard_normal(n)
     gaps = schedule.gaps
     samples: list = []
     u = s.sigma_bb_m * rng.standard_normal()

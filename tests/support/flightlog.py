@@ -8,8 +8,9 @@ from typing import List, Tuple
 
 from mavnav.atmosphere import pressure_at_height_pa
 from mavnav.config import IngestConfig
+from mavnav.constants import G0_MPS2
 from mavnav.ingest import TlogSource
-from mavnav.ingest.tlog_writer import TlogWriter
+from tests.support.tlog_writer import TlogWriter
 
 UNIX0 = 1_700_000_000.0
 P_GROUND_PA = 100_000.0
@@ -55,7 +56,7 @@ class FlightLog:
     def attitude_q(self, t, q, **kw):
         return self.put(self.mav.attitude_quaternion_encode(self.ms(t), *q, 0, 0, 0), t, **kw)
 
-    def highres(self, t, f_b=(0.0, 0.0, -9.80665), updated=0b111, t_us=None, **kw):
+    def highres(self, t, f_b=(0.0, 0.0, -G0_MPS2), updated=0b111, t_us=None, **kw):
         tu = self.us(t) if t_us is None else t_us
         return self.put(self.mav.highres_imu_encode(tu, *f_b, 0, 0, 0, 0, 0, 0, 1000.0, 0, 0, 20.0, updated), t, **kw)
 
@@ -126,7 +127,7 @@ class FlightLog:
                 if imu == "highres" and imu_follows_height:
                     d = 1.0 / imu_hz
                     acc = (height_fn(t + d) - 2.0 * h + height_fn(t - d)) / (d * d)
-                    self.highres(t, f_b=(0.0, 0.0, -9.80665 - acc))
+                    self.highres(t, f_b=(0.0, 0.0, -G0_MPS2 - acc))
                 elif imu == "highres":
                     self.highres(t)
                 elif imu == "raw":

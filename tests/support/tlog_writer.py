@@ -1,4 +1,4 @@
-"""Write .tlog files with pymavlink's own encoder (tests, benchmarks, simulators).
+"""Write .tlog files with pymavlink's own encoder (the tests' hand-made flights, bench/ingest.py).
 
 Each record is the 8-byte big-endian receive time in microseconds followed
 by the frame pymavlink packs, MAVLink 2 by default or MAVLink 1 on request.

@@ -11,7 +11,7 @@ from mavnav.channel import CHANNELS, GB, N_PAPER, Model, initial_state, step
 from mavnav.config import config_from_dict
 from mavnav.epochs import EpochBuilder, EpochStart
 from mavnav.samples import GnssHeight
-from mavnav.synthetic import TrueSensors
+from tests.support.synthetic import TrueSensors
 
 
 def config_for(sensors: TrueSensors, **filter_opts):
