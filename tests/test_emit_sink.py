@@ -429,7 +429,9 @@ def test_a_moved_home_is_said_and_altitude_amsl_stays_the_same_place(peer):
     sink.sample(ReferenceMoved(t_us=30_000, recv_s=0.0, boot=0, alt_ref_msl_m=480.0, shift_m=1.5, offset_m=1.5,
                                origin="home"))
     sink.epoch(report(40_000, h=0.0))
-    assert peer.wait_for(lambda: len(peer.of("ALTITUDE")) == 2 and texts_of(peer.msgs, strict=False))
+    # every stream of the two epochs in (UDP keeps no order between them)
+    assert peer.wait_for(lambda: len(peer.of("ALTITUDE")) == 2 and len(peer.of("ODOMETRY")) == 2
+                         and texts_of(peer.msgs, strict=False))
     a = peer.of("ALTITUDE")
     assert a[0].altitude_amsl == a[1].altitude_amsl == 480.0
     assert [o.reset_counter for o in peer.of("ODOMETRY")] == [0, 1]

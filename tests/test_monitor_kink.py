@@ -14,10 +14,9 @@ import pytest
 from mavnav.monitor.kink import KinkSeries, MeanSquare, isolate, kink_fit, onsets
 from mavnav.pipeline import run
 from mavnav.samples import RangeHeight
-from mavnav.synthetic import Schedule, paper_flight
-
-from fault_helpers import apply_fault
-from monitor_helpers import SENSORS, T0_US, Collect, cfg_for, hover
+from tests.support.faults import apply_fault
+from tests.support.monitor import SENSORS, T0_US, Collect, cfg_for, hover
+from tests.support.synthetic import Schedule, paper_flight
 
 SEEDS = (1, 2, 3, 4)
 
@@ -41,6 +40,7 @@ def test_kink_fit_recovers_the_ramp_through_offset_velocity_and_bias(seed):
     assert abs(taus[np.argmax(np.abs(num / np.sqrt(den)))] + 3.0) < 1.0
 
 
+@pytest.mark.simulation
 def test_kink_z_is_standard_normal_without_a_ramp():
     """NIS-like consistency: z = g'e / (sigma sqrt(g'g)) has unit variance under no fault."""
     z = []
@@ -103,6 +103,8 @@ def _fly_without_rangefinder(fault, seed, sensors=GOOD_INS, **features):
     return first
 
 
+@pytest.mark.simulation
+@pytest.mark.slow
 @pytest.mark.parametrize("fault,source,needs_kink", [(("gnss", "ramp", 70.0, 20.0, 0.5), "gnss", False),
                                                      (("baro", "ramp", 70.0, 20.0, 0.5), "baro_ins", True)])
 def test_ramp_is_pinned_on_its_sensor_by_the_ins(fault, source, needs_kink):
@@ -122,6 +124,8 @@ def test_ramp_is_pinned_on_its_sensor_by_the_ins(fault, source, needs_kink):
         assert fast_off == 0
 
 
+@pytest.mark.simulation
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", SEEDS)
 @pytest.mark.parametrize("fault", [("gnss", "ramp", 70.0, 20.0, 0.5), ("baro", "ramp", 70.0, 20.0, 0.5)])
 def test_a_poor_ins_pins_nothing_on_the_wrong_sensor(fault, seed):

@@ -16,10 +16,11 @@ from mavnav.config import config_from_dict
 from mavnav.ingest import open_log
 from mavnav.ingest.vehicle_class import not_applicable_reason
 from mavnav.samples import BaroHeight, GnssHeight, Notice, RangeHeight
+from tests.support.paths import SHARED
 
 REPO = Path(__file__).resolve().parents[1]
 SIM_TLOG = REPO / "sitl_logs" / "ardupilot_rng_dropout.tlog"
-ARDUSUB = REPO.parent / "shared" / "tlogs" / "real" / "ardusub_rov_sonar_2023.tlog"
+ARDUSUB = SHARED / "tlogs" / "real" / "ardusub_rov_sonar_2023.tlog"
 
 
 def _retyped(src: Path, dst: Path, mav_type: int) -> Path:
@@ -73,6 +74,7 @@ def test_water_vehicle_drops_height_samples(tmp_path, mav_type, word):
     assert st.samples["imu"] == cst.samples["imu"]
 
 
+@pytest.mark.slow
 def test_water_vehicle_audit_has_no_alarm(tmp_path):
     control = audit_file(SIM_TLOG, config_from_dict({}))
     assert control["height_integrity_applies"] and control["epochs"] > 0
@@ -82,6 +84,8 @@ def test_water_vehicle_audit_has_no_alarm(tmp_path):
     assert any("does not apply to a submarine" in n for n in r["notes"])
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 @pytest.mark.skipif(not ARDUSUB.is_file(), reason="shared/tlogs not beside the checkout")
 def test_real_ardusub_is_not_applicable():
     r = audit_file(ARDUSUB, config_from_dict({}))
