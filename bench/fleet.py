@@ -15,6 +15,11 @@ actually got (CPU seconds / wall seconds) and the load average: on a shared
 machine the ratio is bounded by the cores left free. Usage::
 
     .venv/bin/python bench/fleet.py [--copies 6] [--dask]
+
+``--logs PATH...`` audits those logs (files or directories, e.g. the
+real-flight corpus: ``../shared/tlogs/real ../shared/tlogs/other
+../shared/flightlogs ~/.cache/mavnav-flightlogs``) instead of the copies,
+in place; ``--no-serial`` skips the in-process run.
 """
 
 from __future__ import annotations
@@ -59,17 +64,25 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--copies", type=int, default=6, help="copies of each sitl_logs tlog (6 logs each)")
     ap.add_argument("--dask", action="store_true", help="also on a distributed.LocalCluster")
+    ap.add_argument("--logs", nargs="+", default=None, metavar="PATH", help="audit these logs instead of copies")
+    ap.add_argument("--no-serial", action="store_true", help="skip the in-process run")
     args = ap.parse_args()
     print("command:", " ".join(shlex.quote(a) for a in [".venv/bin/python", "bench/fleet.py", *sys.argv[1:]]))
     print(f"cores: {os.cpu_count()}, load average before: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
     with tempfile.TemporaryDirectory() as tmp:
-        files = make_fleet(Path(tmp), args.copies)
+        if args.logs:
+            from mavnav.ingest import expand_log_paths
+
+            files = expand_log_paths([os.path.expanduser(p) for p in args.logs])
+        else:
+            files = make_fleet(Path(tmp), args.copies)
         mb = sum(f.stat().st_size for f in files) / 1e6
         print(f"{len(files)} files, {mb:.1f} MB")
         timed(files[:2], backend="serial")  # warm numba's cache and the imports in this process
         rows = []
-        dt, cpu = timed(files, backend="serial")
-        rows.append(("serial (in process)", 1, dt, cpu))
+        if not args.no_serial:
+            dt, cpu = timed(files, backend="serial")
+            rows.append(("serial (in process)", 1, dt, cpu))
         for w in (1, 2):
             dt, cpu = timed(files, workers=w, backend="processes")
             rows.append(("processes (--workers N)", w, dt, cpu))

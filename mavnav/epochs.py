@@ -99,9 +99,15 @@ class Cadence:
         self.interval_us: Optional[int] = None
 
     def push(self, t_us: int) -> None:
-        if self._last_t is not None and t_us > self._last_t:
-            self._dts.append(t_us - self._last_t)
-            self.interval_us = sorted(self._dts)[len(self._dts) // 2]
+        last = self._last_t
+        if last is not None and t_us > last:
+            dts = self._dts
+            dt = t_us - last
+            if len(dts) == dts.maxlen and dts[0] == dt:
+                dts.append(dt)  # the interval that leaves is the one that comes: same median
+            else:
+                dts.append(dt)
+                self.interval_us = sorted(dts)[len(dts) // 2]
         self._last_t = t_us
 
 
@@ -120,6 +126,8 @@ class EpochBuilder:
         # paper mode is the paper's filter: no measured input noise beyond its model
         self._measured_noise = cfg.monitor.mode != "paper"
         self.counters: Counter[str] = Counter()
+        # q_a(T)^2 by T: the IMU scatter takes it off for every sample, at a handful of distinct T
+        self._q2_by_tau: dict[float, float] = {}
         self.reset()
 
     def reset(self) -> None:
@@ -131,6 +139,9 @@ class EpochBuilder:
         self._aux: dict[str, deque] = {"gnss": deque(), "rng": deque()}
         self._baro_restart = False
         self._cadence = {k: Cadence() for k in ("imu", "baro", "gnss", "rng")}
+        self._imu_cadence = self._cadence["imu"]
+        self._gap_key: Optional[int] = -1  # the baro interval _gap_us was computed for (-1: none yet)
+        self._gap_us = 0
         self._scatter_var = math.nan  # of f_up between consecutive IMU samples, (m/s^2)^2
         self._scatter_n = 0
         self._baro_d2: deque[float] = deque(maxlen=self._baro_cfg.white_window)  # |second differences|
@@ -151,10 +162,15 @@ class EpochBuilder:
         return 0.0 if iv is None else iv * 1e-6
 
     def _max_gap_us(self) -> int:
-        f = self._f
-        if self._cadence["baro"].interval_us is None:  # not yet shown its cadence
-            return int(1e6 * max(f.max_epoch_gap_s, f.max_meas_age_s))
-        return int(1e6 * max(f.max_epoch_gap_s, f.epoch_gap_intervals * self._interval_s("baro")))
+        iv = self._cadence["baro"].interval_us
+        if iv != self._gap_key:  # once per change of the baro cadence, not per IMU sample
+            f = self._f
+            if iv is None:  # not yet shown its cadence
+                self._gap_us = int(1e6 * max(f.max_epoch_gap_s, f.max_meas_age_s))
+            else:
+                self._gap_us = int(1e6 * max(f.max_epoch_gap_s, f.epoch_gap_intervals * self._interval_s("baro")))
+            self._gap_key = iv
+        return self._gap_us
 
     def _latency_us(self, which: str) -> int:
         f = self._f
@@ -184,36 +200,51 @@ class EpochBuilder:
             self.counters["reboot_resets"] += 1
         return []
 
+    def _q2(self, tau: float) -> float:
+        """``accel_noise_q(tau)^2``, computed once per distinct ``tau``."""
+        q2 = self._q2_by_tau.get(tau)
+        if q2 is None:
+            if len(self._q2_by_tau) >= 1024:  # jittery clocks: bounded
+                self._q2_by_tau.clear()
+            q2 = self._q2_by_tau[tau] = accel_noise_q(tau, self._model) ** 2
+        return q2
+
     def _on_imu(self, t_us: int, f_up: float) -> list[Epoch]:
-        if self._last_imu_t is not None and t_us <= self._last_imu_t:
+        # One call per IMU sample (200-400 Hz onboard): the attributes it
+        # needs are read once, the noise terms come from a table by interval.
+        last_t = self._last_imu_t
+        if last_t is not None and t_us <= last_t:
             self.counters["imu_not_increasing"] += 1
             return []
-        if self._imu:
-            prev_t, prev_f = self._imu[-1]
+        imu = self._imu
+        cadence = self._imu_cadence
+        if imu:
+            prev_t, prev_f = imu[-1]
             # scatter beyond the modelled INS white noise, whose per-sample
             # variance q_a(T)^2 the filters' process noise already carries
             # (the running mean may go negative; it is used clamped at 0)
             tau = (t_us - prev_t) * 1e-6
-            iv = self._interval_s("imu") or tau
-            d2 = 0.5 * (f_up - prev_f) ** 2 - 0.5 * (accel_noise_q(tau, self._model) ** 2
-                                                      + accel_noise_q(iv, self._model) ** 2)
+            iv_us = cadence.interval_us
+            iv = (0.0 if iv_us is None else iv_us * 1e-6) or tau
+            d2 = 0.5 * (f_up - prev_f) ** 2 - 0.5 * (self._q2(tau) + self._q2(iv))
             self._scatter_n += 1
             if self._scatter_var != self._scatter_var:
                 self._scatter_var = d2
             else:  # a running mean until the window is full, then exponential
                 a = min(1.0, max((t_us - prev_t) * 1e-6 / self._f.imu_scatter_window_s, 1.0 / self._scatter_n))
                 self._scatter_var += a * (d2 - self._scatter_var)
-        self._cadence["imu"].push(t_us)
-        self._imu.append((t_us, f_up))
+        cadence.push(t_us)
+        imu.append((t_us, f_up))
         self._last_imu_t = t_us
         out: list[Epoch] = []
-        if not self.started:
-            while len(self._imu) > 1:
-                self._imu.popleft()  # keep only the latest until the first baro
+        if self._epoch_t is None:  # not started
+            while len(imu) > 1:
+                imu.popleft()  # keep only the latest until the first baro
             return out
-        while self._pending_baro and self._pending_baro[0].t_us <= t_us:
-            out.append(self._epoch_at(self._pending_baro.popleft()))
-        if not self._pending_baro and t_us - self._epoch_t > self._max_gap_us():
+        pending = self._pending_baro
+        while pending and pending[0].t_us <= t_us:
+            out.append(self._epoch_at(pending.popleft()))
+        if not pending and t_us - self._epoch_t > self._max_gap_us():
             out.append(self._forced_epoch(t_us))
         return out
 

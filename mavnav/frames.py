@@ -58,7 +58,29 @@ def cos_tilt(down_row: Tuple[float, float, float]) -> float:
 
 
 def slerp(q0: Quat, q1: Quat, frac: float) -> Quat:
-    """Spherical interpolation between two unit quaternions, ``frac`` in [0, 1]."""
+    """Spherical interpolation between two unit quaternions, ``frac`` in [0, 1].
+
+    Written out component by component (one call per IMU sample); the sums
+    run left to right as :func:`slerp_reference`'s, so the floats are the same."""
+    a0, a1, a2, a3 = q0
+    b0, b1, b2, b3 = q1
+    dot = a0 * b0 + a1 * b1 + a2 * b2 + a3 * b3
+    if dot < 0.0:
+        b0, b1, b2, b3 = -b0, -b1, -b2, -b3
+        dot = -dot
+    if dot > 0.9995:
+        c0, c1, c2, c3 = a0 + frac * (b0 - a0), a1 + frac * (b1 - a1), a2 + frac * (b2 - a2), a3 + frac * (b3 - a3)
+    else:
+        theta = math.acos(dot)
+        s0 = math.sin((1 - frac) * theta) / math.sin(theta)
+        s1 = math.sin(frac * theta) / math.sin(theta)
+        c0, c1, c2, c3 = s0 * a0 + s1 * b0, s0 * a1 + s1 * b1, s0 * a2 + s1 * b2, s0 * a3 + s1 * b3
+    n = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2 + c3 * c3)
+    return (c0 / n, c1 / n, c2 / n, c3 / n)
+
+
+def slerp_reference(q0: Quat, q1: Quat, frac: float) -> Quat:
+    """The readable form of :func:`slerp` (``tests/test_frames_slerp.py``: the same floats)."""
     dot = sum(a * b for a, b in zip(q0, q1))
     if dot < 0.0:
         q1 = tuple(-c for c in q1)  # type: ignore[assignment]

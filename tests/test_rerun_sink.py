@@ -325,10 +325,11 @@ def test_live_records_the_same_as_replay_columns(tmp_path, live_batch_s):
 
 def test_live_sends_every_quarter_second_of_vehicle_time_and_at_once_after_an_alarm(tmp_path):
     [sink] = make_viewer_sinks("none", None, str(tmp_path / "live.rrd"), live=True)
-    sent = []  # vehicle time of the newest epoch when the writer sent
+    sent = []  # vehicle time of the newest epoch when the writer sent (or queued a batch, sent one entity a message)
     newest = [0]
-    flush = sink.writer.flush
+    flush, queue_batch = sink.writer.flush, sink.writer._queue_batch
     sink.writer.flush = lambda: (sent.append(newest[0]), flush())[1]
+    sink.writer._queue_batch = lambda: (sent.append(newest[0]), queue_batch())[1]
     epoch, alarm = sink.epoch, sink.alarm
     alarm_times, checked = set(), []
 

@@ -16,14 +16,8 @@ from typing import Optional
 
 import click
 
-from ..audit import worst_state
-from ..config import load_config
 from ..errors import MavnavError
 from ..fleet.cache import DEFAULT_CACHE_DIR
-from ..fleet.task import audit_one
-from ..ingest import expand_log_paths
-from ..sim.faults import parse_faults
-from ..sinks.csv_sink import CsvSink
 from . import main
 from .honest import check_outputs, honest_audit_result
 from .run import common_options
@@ -100,6 +94,14 @@ def audit_cmd(paths, json_path, fail_on, workers, scheduler, fleet_report, cache
     cache: the key is the SHA-256 of the file's bytes with the effective
     configuration, --sysid and the mavnav version and sources.
     """
+    # the audit's own modules (the estimator, numba, scipy) load when it runs, not for --help
+    from ..audit import worst_state
+    from ..config import load_config
+    from ..fleet.task import audit_one
+    from ..ingest import expand_log_paths
+    from ..sim.faults import parse_faults
+    from ..sinks.csv_sink import CsvSink
+
     cfg = load_config(config_path)
     faults = parse_faults(inject)  # a bad spec fails here, before any work
     check_outputs({"--csv": csv_path, "--rrd": viewer_kw.get("rrd"), "--json": json_path},

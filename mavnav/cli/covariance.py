@@ -5,10 +5,7 @@ from __future__ import annotations
 import json
 
 import click
-import numpy as np
 
-from ..config import load_config
-from ..covariance import covariance_analysis
 from . import main
 
 _REPORT_TIMES_S = (0.0, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 30.0, 60.0)
@@ -22,6 +19,11 @@ _REPORT_TIMES_S = (0.0, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 30.0, 60.0)
 def covariance_cmd(config_path: str, duration_s: float, as_json: bool) -> None:
     """Run the covariance recursion of each channel (no data) and report the RMS
     of height, vertical speed, baro bias and accelerometer bias over time."""
+    import numpy as np
+
+    from ..config import load_config
+    from ..covariance import covariance_analysis
+
     cfg = load_config(config_path)
     result = covariance_analysis(cfg, duration_s)
     if as_json:

@@ -15,17 +15,17 @@ Nothing is transmitted without ``--emit``; no command without
 from __future__ import annotations
 
 import time
-from typing import Callable, List, Optional, Sequence, Tuple
+from typing import TYPE_CHECKING, Callable, List, Optional, Sequence, Tuple
 
 import click
-from pymavlink import mavutil
 
-from ..config import Config
 from ..errors import ConfigError, InputError
-from ..sinks.base import Sink
-from ..sinks.mavlink_commands import parse_rate
-from ..sinks.mavlink_link import load_signing_key
-from ..sinks.mavlink_out import EmitConfig, MavlinkOutSink
+
+# pymavlink and the output sink are imported when a link is opened or a sink
+# built, not when the CLI parses its arguments.
+if TYPE_CHECKING:
+    from ..config import Config
+    from ..sinks.base import Sink
 
 INPUT = "input"
 
@@ -111,6 +111,8 @@ def open_link(connection: str, sysid: int, compid: int):
     if device.startswith("tcp:"):
         # reconnect inside write(), one connect attempt each time, no sleeping retries
         kwargs.update(autoreconnect=True, retries=0)
+    from pymavlink import mavutil
+
     try:
         return mavutil.mavlink_connection(device, **kwargs)
     except Exception as exc:  # socket, serial and parsing errors alike
@@ -144,6 +146,11 @@ def make_emit_sinks(
     the command timeout); ``say``: where command results are told (the
     console). Misspelt keywords raise ``TypeError`` (no ``**kwargs`` swallowing).
     """
+    from ..config import Config
+    from ..sinks.mavlink_commands import parse_rate
+    from ..sinks.mavlink_link import load_signing_key
+    from ..sinks.mavlink_out import EmitConfig, MavlinkOutSink
+
     config = config if config is not None else Config()
     if emit is None:
         stray = [name for name, on in (("--allow-commands", allow_commands), ("--emit-debug", emit_debug),

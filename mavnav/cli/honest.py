@@ -18,8 +18,6 @@ from pathlib import Path
 from typing import Dict, Optional, Tuple, Union
 
 from ..errors import InputError, MavnavError
-from ..ingest import wire
-from ..ingest.tlog_reader import TlogReader
 
 PathLike = Union[str, Path]
 
@@ -91,6 +89,9 @@ def check_outputs(files: Dict[str, Optional[PathLike]] = None, dirs: Dict[str, O
 def scan_tlog(path: PathLike) -> Tuple[Dict[int, dict], Optional[int]]:
     """One pass over a tlog: ``({sysid: {"heartbeats", "type", "autopilot", "frames"}}, truncated_at)``,
     ``truncated_at`` the byte offset of a record the end of the file cuts short (or None)."""
+    from ..ingest import wire
+    from ..ingest.tlog_reader import TlogReader
+
     reader = TlogReader(path, {HEARTBEAT})
     decode = wire.make_decoder(HEARTBEAT)
     seen: Dict[int, dict] = {}

@@ -7,14 +7,13 @@ from typing import Optional, Tuple
 import click
 
 from ..errors import InputError
-from ..sim.faults import parse_fault, sidecar_path, write_sidecar
-from ..sim.inject import inject_file
-from ..sim.scenario import FAULT_MAGNITUDE, FAULT_SOURCE
 from . import main
 from .honest import check_outputs
 
 
 def _kinds_help() -> str:
+    from ..sim.scenario import FAULT_MAGNITUDE, FAULT_SOURCE
+
     lines = []
     for kind, src in FAULT_SOURCE.items():
         meaning = FAULT_MAGNITUDE[kind] or "no magnitude"
@@ -22,7 +21,9 @@ def _kinds_help() -> str:
     return "\n".join(lines)
 
 
-_HELP = f"""Inject FAULTs into a recorded tlog from a given vehicle time.
+_SUMMARY = "Inject FAULTs into a recorded tlog from a given vehicle time."
+
+_HELP = _SUMMARY + """
 
 Every record outside the fault windows (and every message type a fault does
 not touch) is copied byte for byte, corrupt frames and timestamps included.
@@ -43,7 +44,7 @@ FAULT syntax:  KIND:key=value,key=value,...
 
 \b
 Kinds [source] and magnitude:
-{_kinds_help()}
+{kinds}
 
 \b
 Examples:
@@ -52,7 +53,17 @@ Examples:
 """
 
 
-@main.command("inject", help=_HELP)
+class _InjectCommand(click.Command):
+    """The kinds in the help live with the simulator (pydantic, numpy): the
+    full text is built when it is shown, the summary line serves the list of
+    commands."""
+
+    def format_help_text(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        self.help = _HELP.format(kinds=_kinds_help())
+        super().format_help_text(ctx, formatter)
+
+
+@main.command("inject", cls=_InjectCommand, help=_SUMMARY)
 @click.argument("in_path", metavar="IN.tlog", type=click.Path(dir_okay=False))
 @click.argument("faults", metavar="FAULT...", nargs=-1, required=True)
 @click.option("-o", "--output", "out_path", required=True, type=click.Path(dir_okay=False),
@@ -60,6 +71,9 @@ Examples:
 @click.option("--sysid", type=click.IntRange(1, 255), default=None,
               help="System id of the vehicle (default: the first autopilot HEARTBEAT).")
 def inject_cmd(in_path: str, faults: Tuple[str, ...], out_path: str, sysid: Optional[int]) -> None:
+    from ..sim.faults import parse_fault, sidecar_path, write_sidecar
+    from ..sim.inject import inject_file
+
     parsed = [parse_fault(spec) for spec in faults]
     if str(in_path) == str(out_path):
         raise InputError("the output must not overwrite the input")

@@ -9,17 +9,12 @@ from __future__ import annotations
 import signal
 import sys
 import time
-from typing import Iterable, Iterator, Optional
+from typing import TYPE_CHECKING, Iterable, Iterator, Optional
 
 import click
 
-from ..config import Config, load_config
 from ..errors import MavnavError
 from ..home_frame import home_moved_text
-from ..ingest import LiveSource, open_log
-from ..pipeline import run as run_pipeline
-from ..sim.effects import FaultedSource
-from ..sim.faults import parse_faults
 from ..report import AlarmEvent, RunSummary
 from ..samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceMoved, ReferenceSet
 from ..sinks.base import Sink
@@ -28,6 +23,11 @@ from . import main
 from .emit_options import emit_options, make_emit_sinks, split_emit_options
 from .honest import check_outputs, has_vehicle_data, no_vehicle_error
 from .viewer_options import make_viewer_sinks, viewer_options
+
+# The monitor, its sources and sinks (numba, scipy, pymavlink, rerun) are
+# imported where a command runs, not when the CLI parses its arguments.
+if TYPE_CHECKING:
+    from ..config import Config
 
 
 def common_options(f):
@@ -173,6 +173,12 @@ def run_cmd(connection: str, config_path, sysid, csv_path, inject, **kw) -> None
     with its baud rate (/dev/ttyACM0,115200). SIGINT or SIGTERM stop it
     cleanly with a summary.
     """
+    from ..config import load_config
+    from ..ingest import LiveSource
+    from ..pipeline import run as run_pipeline
+    from ..sim.effects import FaultedSource
+    from ..sim.faults import parse_faults
+
     emit_kw, rest = split_emit_options(kw)
     viewer_kw, rest = _split_viewer(rest)
     cfg = load_config(config_path)
@@ -212,6 +218,12 @@ def run_cmd(connection: str, config_path, sysid, csv_path, inject, **kw) -> None
 def replay_cmd(tlog: str, speed: str, config_path, sysid, csv_path, inject, **kw) -> None:
     """Replay a recorded log (tlog, ArduPilot DataFlash .bin or PX4 .ulg, detected by
     content) through the monitor: the same pipeline as ``run``."""
+    from ..config import load_config
+    from ..ingest import open_log
+    from ..pipeline import run as run_pipeline
+    from ..sim.effects import FaultedSource
+    from ..sim.faults import parse_faults
+
     emit_kw, rest = split_emit_options(kw)
     viewer_kw, rest = _split_viewer(rest)
     pace = parse_speed(speed)

@@ -7,7 +7,6 @@ from typing import Optional
 
 import click
 
-from ..sim import load_scenario, sidecar_path, simulate
 from . import main
 from .honest import check_outputs
 
@@ -24,6 +23,8 @@ def simulate_cmd(scenario_path: str, out_path: str, truth_path: Optional[str], s
     trajectory, with the scenario's faults, encoded as a real autopilot's
     MAVLink stream. Writes OUT.tlog, OUT.faults.json (fault windows) and, with
     --truth, a truth CSV at the scenario's truth_rate_hz. Same seed, same bytes."""
+    from ..sim import load_scenario, sidecar_path, simulate
+
     scn = load_scenario(scenario_path)
     out = Path(out_path)
     check_outputs({"-o": out, "the fault sidecar": sidecar_path(out), "--truth": truth_path})

@@ -20,6 +20,7 @@ class SourceTracker:
         self.boot = boot
         self.clear_us = clear_us
         self._clean_since: Optional[int] = None
+        self._status: Optional[SourceStatus] = None  # built once per change of state or reason
 
     def set(self, state: str, t_us: int, reason: str) -> Optional[AlarmEvent]:
         if state == self.state:
@@ -38,4 +39,12 @@ class SourceTracker:
         return ev
 
     def status(self, **extra) -> SourceStatus:
-        return SourceStatus(state=self.state, since_t_s=self.since_us * 1e-6, reason=self.reason, **extra)  # type: ignore[arg-type]
+        """The current status; without ``extra`` the same (frozen) object until the state,
+        its start or its reason changes: a report per change, not per epoch."""
+        if extra:
+            return SourceStatus(state=self.state, since_t_s=self.since_us * 1e-6, reason=self.reason, **extra)  # type: ignore[arg-type]
+        st = self._status
+        if st is None or st.state != self.state or st.reason != self.reason or st.since_t_s != self.since_us * 1e-6:
+            st = self._status = SourceStatus(state=self.state, since_t_s=self.since_us * 1e-6,  # type: ignore[arg-type]
+                                             reason=self.reason)
+        return st

@@ -50,6 +50,7 @@ from __future__ import annotations
 import logging
 import math
 import re
+from collections import deque
 import threading
 import time
 from dataclasses import dataclass, field
@@ -204,6 +205,9 @@ class _RowWriter:
     def pending(self) -> int:
         return 0
 
+    def send_one(self) -> None:
+        pass
+
     def flush(self) -> None:
         pass
 
@@ -217,7 +221,13 @@ class _Column:
 
 class _ColumnWriter:
     """Buffers rows per entity and sends them with ``send_columns``: in large
-    batches (replay), or every ``every_ns`` of vehicle time (live)."""
+    batches (replay), or every ``every_ns`` of vehicle time (live).
+
+    Live, a batch that falls due is queued per entity and sent one entity per
+    call of :meth:`send_one` (the sink calls it once per message), so no
+    message waits for the whole batch (about 30 entities at 75 us each); the
+    queue is emptied before the next batch is queued, and :meth:`flush`
+    (an alarm, close) sends everything at once."""
 
     def __init__(self, rec: _Fanout, batch_rows: int, every_ns: Optional[int] = None):
         self.rec = rec
@@ -229,6 +239,7 @@ class _ColumnWriter:
         self._docs: dict[str, _Column] = {}
         self._n = 0
         self._since_ns: Optional[int] = None  # vehicle time of the oldest buffered row
+        self._queue: deque = deque()  # (kind, entity, column) of a batch due, in sending order
 
     def _add(self, table: dict, entity: str, ns: int, value, extra=None) -> None:
         col = table.get(entity)
@@ -241,8 +252,10 @@ class _ColumnWriter:
         self._n += 1
         if self._since_ns is None:
             self._since_ns = ns
-        if self._n >= self.batch_rows or (self.every_ns is not None and ns - self._since_ns >= self.every_ns):
+        if self._n >= self.batch_rows:
             self.flush()
+        elif self.every_ns is not None and ns - self._since_ns >= self.every_ns:
+            self._queue_batch()
 
     def scalars(self, entity: str, ns: int, values: Sequence[float]) -> None:
         self._add(self._scalars, entity, ns, tuple(values))
@@ -257,19 +270,42 @@ class _ColumnWriter:
         self._add(self._docs, entity, ns, markdown)
 
     def pending(self) -> int:
-        return self._n
+        return self._n + sum(len(col.times) for _, _, col in self._queue)
 
     @staticmethod
     def _index(col: _Column) -> list:
         return [rr.TimeColumn(bp.TIMELINE, duration=np.asarray(col.times, dtype=np.int64).astype("timedelta64[ns]"))]
 
-    def flush(self) -> None:
-        scalars, texts, states, docs = self._scalars, self._texts, self._states, self._docs
+    def _take(self) -> list:
+        """The buffered columns as ``(kind, entity, column)`` in sending order; the buffers start empty."""
+        items = [("scalars", e, c) for e, c in self._scalars.items()]
+        items += [("text", e, c) for e, c in self._texts.items()]
+        items += [("state", e, c) for e, c in self._states.items()]
+        items += [("doc", e, c) for e, c in self._docs.items()]
         self._scalars, self._texts, self._states, self._docs, self._n, self._since_ns = {}, {}, {}, {}, 0, None
-        for entity, col in scalars.items():
+        return items
+
+    def _queue_batch(self) -> None:
+        while self._queue:  # the previous batch goes first, whole
+            self._send(*self._queue.popleft())
+        self._queue.extend(self._take())
+
+    def send_one(self) -> None:
+        """Send one queued entity's columns, if any."""
+        if self._queue:
+            self._send(*self._queue.popleft())
+
+    def flush(self) -> None:
+        while self._queue:
+            self._send(*self._queue.popleft())
+        for item in self._take():
+            self._send(*item)
+
+    def _send(self, kind: str, entity: str, col: _Column) -> None:
+        if kind == "scalars":
             values = np.asarray(col.values, dtype=np.float64)
             self.rec.send_columns(entity, indexes=self._index(col), columns=rr.Scalars.columns(scalars=values))
-        for entity, col in texts.items():
+        elif kind == "text":
             levels = [lv for lv, _ in col.extra]
             colours = np.asarray([c for _, c in col.extra], dtype=np.uint8)
             self.rec.send_columns(
@@ -277,9 +313,9 @@ class _ColumnWriter:
                 indexes=self._index(col),
                 columns=rr.TextLog.columns(text=col.values, level=levels, color=colours),
             )
-        for entity, col in states.items():
+        elif kind == "state":
             self.rec.send_columns(entity, indexes=self._index(col), columns=rr.StateChange.columns(state=col.values))
-        for entity, col in docs.items():
+        else:
             self.rec.send_columns(entity, indexes=self._index(col), columns=rr.TextDocument.columns(
                 text=col.values, media_type=[str(rr.MediaType.MARKDOWN)] * len(col.values)))
 
@@ -473,6 +509,7 @@ class RerunSink(Sink):
         if not self.enabled:
             return
         w = self.writer
+        w.send_one()  # a live batch due goes out one entity per message
         if isinstance(s, Reboot):
             self._judge_raw(None)  # the old boot's epochs are over: what they did not judge is shown as is
             offset = self.clock.reboot(s.boot, s.t_us, s.last_t_us)
