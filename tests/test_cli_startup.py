@@ -16,6 +16,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.integration  # the CLI in subprocesses
+
 REPO = Path(__file__).resolve().parents[1]
 
 # What the brief names, and what else a parse does not need: the monitor's

@@ -19,9 +19,14 @@ pass rules out the baro and the INS.
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections import deque
 from typing import Optional
+
+
+def _time(e) -> int:
+    return e[0]
 
 
 class InsBaroCheck:
@@ -72,7 +77,9 @@ class InsBaroCheck:
         if (t[0] - u[0]) * 1e-6 < self.window_us * 1e-6:
             return None
         mid = 0.5 * (u[0] + t[0])
-        s = min(q, key=lambda e: abs(e[0] - mid))
+        # the sample nearest the middle (the earlier on a tie); q is in time order
+        i = bisect.bisect_left(q, mid, key=_time)
+        s = q[i - 1] if i == len(q) or (i > 0 and mid - q[i - 1][0] <= q[i][0] - mid) else q[i]
         D0, D1 = (s[0] - u[0]) * 1e-6, (t[0] - s[0]) * 1e-6
         if D0 <= 0 or D1 <= 0:
             return None
