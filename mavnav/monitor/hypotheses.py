@@ -99,6 +99,7 @@ class HypothesisLogic:
         self.stale_us = {GNSS: int(m.stale_gnss_s * 1e6), RNG: int(m.stale_rng_s * 1e6)}
         self.stale_baro_us = int(m.stale_baro_s * 1e6)
         self.coast_us = int(m.coast_reinit_s * 1e6)
+        self.hold_restart_us = int(m.hold_restart_s * 1e6)
         self.warmup_us = int(m.warmup_s * 1e6)
         self.kink_margin = chi2_gate(m.kink_isolation_prob)
         self.t0_us = 0
@@ -132,6 +133,9 @@ class HypothesisLogic:
         self.refused: deque = deque()  # (t_us, kind, value_m, min_m, max_m)
         self.range_valid: deque = deque()
         self.isolated_since: Optional[int] = None
+        self.hold_since: Optional[int] = None  # an unresolved failure held since
+        self.last_hold: Optional[Judgement] = None  # the failure held, until its restarted tests run clean
+        self.restarted_us = {"gnss": -10**18, "rangefinder": -10**18}  # a held CUSUM last restarted
         self.isolated_src: frozenset = frozenset()
         self.last_feedback_us = t_us
         self.baro_white_var = 0.0
@@ -367,7 +371,9 @@ class HypothesisLogic:
         if rej >= m.caution_rejections or cs.stat > m.suspect_frac * h:
             return Verdict(f"{name} innovation", "suspect", implicates, stat=cs.stat, threshold=h,
                            text=f"{label}: {rej} rejected, CUSUM {cs.stat:.1f} of {h:.1f}")
-        clear = frozenset() if cs.stat >= m.clear_frac * h or rej else (
+        # a CUSUM restarted on a held failure vouches for nothing until it has run again
+        fresh = t - self.restarted_us[name] < self.hold_restart_us
+        clear = frozenset() if cs.stat >= m.clear_frac * h or rej or fresh else (
             # without the baro the channel rests on the INS alone between its samples
             frozenset((name,)) if self.bank.baro_on[c] else frozenset((name, "ins")))
         return Verdict(f"{name} innovation", "pass", implicates, clear, cs.stat, h,
@@ -450,10 +456,12 @@ class HypothesisLogic:
             if abs(r) > self.m.suspect_frac * thr:
                 out.append(Verdict(test, "suspect", implicates, stat=abs(r), threshold=thr, text=txt))
             else:
-                # a pass clears the baro only, and only while the channel takes its own
-                # sensor: a channel gating it out coasts on the baro, and its level
-                # then follows a baro ramp
-                held = self.rejections[name].rejected == 0
+                # a pass clears the baro only, and only while the channel tracks its own
+                # sensor (none rejected, its innovations not drifting): a channel gating
+                # it out coasts on the baro, and one whose innovations drift has its
+                # baro-bias estimate dH between the two, so H + dH follows the baro
+                held = (self.rejections[name].rejected == 0
+                        and self.cusum[name].stat < self.m.clear_frac * self._h(name))
                 clear = frozenset(("baro",)) if abs(r) < self.m.clear_frac * thr and held else frozenset()
                 # scale: the threshold, not less the statistic: the channel's own height
                 # follows a slow baro error in part, so the margin overstates the power
@@ -643,6 +651,7 @@ class HypothesisLogic:
         j = judge(verdicts, live) if self.f.isolation_2of3 else self._paper_judge(verdicts, live)
         self.judgement = j
         events = []
+        j = self.judgement = self._restart_held(t, j, aux)
         # isolation must hold persist_s before it excludes
         if j.situation == "isolated":
             if self.isolated_src != j.sources:
@@ -673,6 +682,32 @@ class HypothesisLogic:
                                         rejected=self.rejections[name].rejected)
         return Decision(available=avail, used=tuple(used), pairs=pairs, sources=statuses,
                         height_fused_m=h, sigma_fused_m=sigma, events=events)
+
+    def _restart_held(self, t: int, j: Judgement, aux) -> Judgement:
+        """An unresolved failure held ``hold_restart_s``: the sequential tests in
+        it start again (their detection is done). The hold stays until the
+        restarted tests have run ``hold_restart_s`` without failing: a change
+        the channels absorbed is then released, a fault that goes on fails again
+        first and stays held (it never re-enters the output in between)."""
+        if j.situation in ("ambiguous", "inconsistent"):
+            self.last_hold = j
+            if self.hold_since is None:
+                self.hold_since = t
+            elif self.hold_restart_us > 0 and t - self.hold_since >= self.hold_restart_us:
+                self.hold_since = t
+                for v, (_, name) in zip(aux, AUX):
+                    if v is not None and v.failed and self.cusum[name].stat > self._h(name):
+                        self.cusum[name].clear()
+                        self.restarted_us[name] = t
+            return j
+        self.hold_since = None
+        fresh = any(t - self.restarted_us[n] < self.hold_restart_us for n in self.restarted_us)
+        if self.last_hold is not None and fresh and j.situation in ("suspect", "clear"):
+            h = self.last_hold
+            return Judgement(h.situation, h.candidates, h.sources,
+                             "held until the restarted test runs clean: " + h.reason)
+        self.last_hold = None
+        return j
 
     @staticmethod
     def _held(j: Judgement) -> frozenset:
