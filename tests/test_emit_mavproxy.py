@@ -12,7 +12,6 @@ through the pipeline, and emits either on a second MAVProxy port
 from __future__ import annotations
 
 import os
-import socket
 import subprocess
 import sys
 import threading
@@ -30,7 +29,7 @@ from mavnav.sim import load_scenario, simulate
 from mavnav.sinks.mavlink_commands import parse_rate
 from mavnav.sinks.mavlink_out import EmitConfig, MavlinkOutSink
 from tests.support.emit import Autopilot
-from tests.support.live import LiveRun, send_paced, tlog_frames
+from tests.support.live import LiveRun, free_udp_port, send_paced, tlog_frames
 from tests.support.emit import Peer, texts_of
 from tests.support.paths import SCENARIOS
 
@@ -42,12 +41,6 @@ SPEED = 5.0
 REPLAY_S = 12.0
 
 
-def free_udp_port() -> int:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 @pytest.fixture(scope="module")
