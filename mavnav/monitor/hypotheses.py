@@ -219,6 +219,14 @@ class HypothesisLogic:
             else:
                 self.jump = None  # the differencing restarted
                 self.before_jump.clear()
+        if baro_z == math.inf and self.jump is None and self.last_z["baro_ins"] == self.last_z["baro_ins"]:
+            # no baro sample in this epoch (each sample has its own): the latest
+            # baro row, if no older than two baro intervals, says whether the baro
+            # stayed consistent (a baro step shows in its own row before any aux
+            # channel can follow it)
+            iv = self.rates["baro_ins"].interval_s
+            if iv == iv and t - self.last_baro_us <= 2e6 * iv:
+                baro_z = abs(self.last_z["baro_ins"])
         for c, name in AUX:
             aux = ep.gnss if c == GNSS else ep.rng
             self.pending_raw[c] = None
@@ -359,7 +367,8 @@ class HypothesisLogic:
         if sudden is not None and t - sudden[0] > self.rejections[name].length_us:
             self.sudden.pop(name)
             sudden = None
-        if (self.f.innovation_gating and rej >= m.alarm_rejections and sudden is not None and sudden[1]):
+        if (self.f.innovation_gating and (rej >= m.alarm_rejections or cs.stat > h)
+                and sudden is not None and sudden[1]):
             return Verdict(f"{name} innovation", "fail", frozenset((name,)), stat=cs.stat, threshold=h,
                            text=f"{label} jumped {sudden[2]:.2f} m while the baro and INS stayed consistent; "
                                 f"{rej} samples rejected in {m.window_s:g} s", scale_m=sudden[2])
