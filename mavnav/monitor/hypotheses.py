@@ -539,7 +539,8 @@ class HypothesisLogic:
         ts = t * 1e-6
         pos = self.ins.pos_m
         if baro_m is not None:
-            if ts - self.kink["baro-ins"].t[-1] > m.stale_baro_s if self.kink["baro-ins"].t else False:
+            last = self.kink["baro-ins"].t
+            if last and ts - last[-1] > m.stale_baro_s:
                 for ser in self.kink.values():
                     ser.clear()  # the INS chain across a baro gap is no reference
             self.baro_minus_ins_m = baro_m - pos
@@ -573,7 +574,7 @@ class HypothesisLogic:
             return None
         return float(num[0] / den[0]), self.kink_sd[key].sd / math.sqrt(float(den[0]))
 
-    def _kink_verdicts(self, t: int, aux, verdicts) -> list[Verdict]:
+    def _kink_verdicts(self, t: int, aux) -> list[Verdict]:
         """For an aux test that implicates its sensor and the baro: which of the
         two bent against the INS (a pass that rules the other out), if the
         flight's own kink scatter lets the INS tell."""
@@ -582,7 +583,7 @@ class HypothesisLogic:
         if "baro_ins" in self.excluded:
             return out
         ts = t * 1e-6
-        for v, (c, name) in zip(aux, AUX):
+        for v, (_, name) in zip(aux, AUX):
             if v is None or v.level == "pass" or "baro" not in v.implicates:
                 continue
             keys = (f"{name}-baro", f"{name}-ins", "baro-ins")
@@ -655,12 +656,11 @@ class HypothesisLogic:
         verdicts = [v for v in (*aux, self._ins_verdict(t), self._raw_verdict(), envelope)
                     if v is not None] + self._level_verdicts(t)
         if self.f.kink_isolation:
-            verdicts += self._kink_verdicts(t, aux, verdicts)
+            verdicts += self._kink_verdicts(t, aux)
         live = live_hypotheses(self.excluded)
         j = judge(verdicts, live) if self.f.isolation_2of3 else self._paper_judge(verdicts, live)
-        self.judgement = j
-        events = []
         j = self.judgement = self._restart_held(t, j, aux)
+        events = []
         # isolation must hold persist_s before it excludes
         if j.situation == "isolated":
             if self.isolated_src != j.sources:
