@@ -193,6 +193,7 @@ class AuxMeasurement:
     height_m: float  # height above the reference (rangefinder: flat ground at the reference)
     sigma_m: float  # 1-sigma noise
     age_s: float  # epoch time minus measurement time, >= 0
+    vel_up_mps: float = float("nan")  # GNSS Doppler vertical velocity (NaN: none); not a filter row
 
 
 @dataclass(frozen=True, slots=True)

@@ -229,6 +229,7 @@ class AdaptiveFeatures(_Section):
     readmission: bool = True  # readmit an excluded source after it has been consistent for readmit_s
     inverse_variance: bool = True  # fuse by inverse (co)variance, else the arithmetic mean
     kink_isolation: bool = True  # an aux-baro drift pinned on whichever bent against the INS (monitor/kink.py)
+    doppler_check: bool = True  # GNSS altitude against its own Doppler velocity (monitor/doppler.py)
 
 
 class MonitorConfig(_Section):
@@ -322,6 +323,16 @@ class MonitorConfig(_Section):
     kink_learn_interval_s: float = Field(1.0, gt=0)
     kink_learn_tau_s: float = Field(120.0, gt=0)
     kink_min_learned: int = Field(30, ge=2)
+    # GNSS altitude against the receiver's Doppler vertical velocity
+    # (mavnav/monitor/doppler.py): the altitude's change over doppler_window_s
+    # less the velocity's integral, against k(false_alarm_prob) times
+    # doppler_sigma_m times its measured scale (it only widens, up to
+    # residual_scale_max). doppler_sigma_m: the 99th percentile of |e| over 5 s
+    # on the healthy modern receivers here is 0.3-1.1 m (docs/integrity.md).
+    # Samples further apart than doppler_max_gap_s restart the integral.
+    doppler_window_s: float = Field(5.0, gt=0)
+    doppler_sigma_m: float = Field(0.35, gt=0)
+    doppler_max_gap_s: float = Field(1.5, gt=0)
     # Rangefinder envelope: readings refused below its minimum (or above its
     # maximum) while the other sources put the vehicle more than margin inside
     # its range, for most of a window, are a rangefinder failure.

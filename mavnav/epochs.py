@@ -390,8 +390,8 @@ class EpochBuilder:
         """Every pending sample of ``which`` not after ``t_us``, averaged into one measurement."""
         q = self._aux[which]
         limit = self._latency_us(which)
-        n = 0
-        sum_h = sum_age = sum_var = 0.0
+        n = n_v = 0
+        sum_h = sum_age = sum_var = sum_v = 0.0
         while q and q[0].t_us <= t_us:
             s = q.popleft()
             age_us = t_us - s.t_us
@@ -405,6 +405,9 @@ class EpochBuilder:
                 else:
                     sigma = c.sigma_z_m
                 h = s.height_ref_m
+                if s.vel_up_mps is not None:
+                    n_v += 1
+                    sum_v += s.vel_up_mps
             else:
                 h = s.height_agl_m
                 sigma = math.hypot(self._rng_sigma, self._rng_scale * h) if self._rng_scale else self._rng_sigma
@@ -417,7 +420,8 @@ class EpochBuilder:
         self.counters[f"{which}_used"] += n
         if n > 1:
             self.counters[f"{which}_averaged"] += n
-        return AuxMeasurement(height_m=sum_h / n, sigma_m=math.sqrt(sum_var / (n * n)), age_s=sum_age / n)
+        return AuxMeasurement(height_m=sum_h / n, sigma_m=math.sqrt(sum_var / (n * n)), age_s=sum_age / n,
+                              vel_up_mps=sum_v / n_v if n_v else math.nan)
 
     def _make(self, t_us: int, baro_m: Optional[float]) -> EpochInputs:
         dp, dv, dv_var = self._integrate_to(t_us)

@@ -62,6 +62,10 @@ class GnssHeight:
     sigma_m: Optional[float]  # 1-sigma vertical accuracy (v_acc) when reported, else None
     fix_type: int
     satellites: int
+    # the receiver's Doppler vertical velocity (m/s, up), None when not reported:
+    # independent of its position solution's slow errors (MAVLink's GPS_RAW_INT
+    # has none; onboard logs do: ArduPilot GPS.VZ, PX4 vel_d_m_s)
+    vel_up_mps: Optional[float] = None
 
 
 @dataclass(frozen=True, slots=True)

@@ -49,6 +49,7 @@ from ..channel import EpochInputs
 from ..config import Config
 from .cusum import Cusum, threshold_for
 from .decision import Decision, diff_sigmas, pair_reports
+from .doppler import DopplerCheck
 from .fusion import fuse_heights
 from .inscheck import InsBaroCheck
 from .kink import KinkSeries, MeanSquare, isolate, kink_fit, onsets
@@ -166,6 +167,12 @@ class HypothesisLogic:
         self.kink_sd = {k: MeanSquare(m.kink_learn_tau_s) for k in keys}
         self.kink_learned_s = -math.inf
         self.baro_minus_ins_m = math.nan
+        # GNSS altitude against its own Doppler velocity: the check, its measured
+        # scale (it only widens), consecutive GNSS samples past the threshold
+        self.doppler = DopplerCheck(m.doppler_window_s, m.doppler_max_gap_s)
+        self.scale["doppler"] = ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0)
+        self.doppler_over = 0
+        self.doppler_since: Optional[int] = None
 
     # ------------------------------------------------------------------ refused readings
 
@@ -239,6 +246,8 @@ class HypothesisLogic:
             self.last_seen_us[c] = t
             self.pending_raw[c] = (aux.height_m - aux.age_s * bank.x[c, 1], aux.sigma_m)
             self.sensor_var_floor[c] = aux.sigma_m * aux.sigma_m
+            if c == GNSS and self.f.doppler_check:
+                self._push_doppler(t - int(aux.age_s * 1e6), aux)
             field_name = "gnss" if c == GNSS else "rng"
             if name in self.excluded:
                 changes[field_name] = None  # the channel coasts; readmission decides later
@@ -283,6 +292,46 @@ class HypothesisLogic:
                 self.last_accept_us[c] = t
         self.dv_var = ep.dv_var_m2ps2
         return dataclasses.replace(ep, **changes) if changes else ep
+
+    def _doppler_thr(self) -> float:
+        return self.k_cmp * self.m.doppler_sigma_m * self.scale["doppler"].factor
+
+    def _push_doppler(self, t_meas: int, aux) -> None:
+        e = self.doppler.push(t_meas, aux.height_m, aux.vel_up_mps)
+        if e is None:
+            self.doppler_over, self.doppler_since = 0, None
+            return
+        thr = self._doppler_thr()
+        if abs(e) > thr:
+            self.doppler_over += 1
+            if self.doppler_since is None:
+                self.doppler_since = t_meas
+        else:
+            self.doppler_over, self.doppler_since = 0, None
+            if abs(e) <= self.m.suspect_frac * thr:
+                self.scale["doppler"].push(t_meas, e / self.m.doppler_sigma_m)  # frozen while it leans to a fault
+
+    def _doppler_verdict(self, t: int) -> Optional[Verdict]:
+        """The GNSS altitude against its own Doppler velocity
+        (:mod:`.doppler`): a failure implicates the GNSS alone; a pass rules
+        nothing out (a fault in position and velocity together passes it)."""
+        d = self.doppler
+        if (not self.f.doppler_check or "gnss" in self.excluded or self._warm("gnss", t)
+                or d.last_us is None or t - d.last_us > self.stale_us[GNSS] or d.last_e_m != d.last_e_m):
+            return None
+        thr = self._doppler_thr()
+        e = d.last_e_m
+        txt = (f"GNSS altitude moved {e:+.2f} m against its own Doppler velocity over "
+               f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m)")
+        gnss = frozenset(("gnss",))
+        if abs(e) > thr:
+            # two samples in a row, and persist_s: one outlier is the gate's business
+            if self.doppler_over >= 2 and t - self.doppler_since >= self.persist_us:
+                return Verdict("GNSS/Doppler", "fail", gnss, stat=abs(e), threshold=thr, text=txt, scale_m=abs(e))
+            return Verdict("GNSS/Doppler", "suspect", gnss, stat=abs(e), threshold=thr, text=txt)
+        if abs(e) > self.m.suspect_frac * thr:
+            return Verdict("GNSS/Doppler", "suspect", gnss, stat=abs(e), threshold=thr, text=txt)
+        return Verdict("GNSS/Doppler", "pass", gnss, frozenset(), abs(e), thr)
 
     def _anchor(self) -> int:
         best, best_var = BARO, math.inf
@@ -406,15 +455,12 @@ class HypothesisLogic:
             return Verdict("baro/INS", "suspect", implicates, stat=abs(self.jump[1]) / self.jump[2],
                            threshold=math.sqrt(self.baro_gate),
                            text=f"baro jumped {self.jump[1]:+.2f} m against the INS; watching whether it stays")
-        T = max(self.rates["baro_ins"].interval_s, 1e-3) if self.rates["baro_ins"].interval_s == self.rates["baro_ins"].interval_s else 0.1
-        psd = 2.0 * model.sigma_a_mps2 ** 2 / model.alpha_a_per_s + self.dv_var / T
-        res = self.ins.residual(self.baro_white_var, psd, model.baro_bias_rw_m_per_sqrt_s ** 2,
-                                model.sigma_bb_m ** 2, model.gamma_bb_per_s)
+        res = self._ins_residual()
         if res is None:
             return None
-        e, sigma, D = res
+        e, thr, D = res
         sc = self.scale["ins"]
-        thr = self.k_cmp * sigma * sc.factor
+        sigma = thr / (self.k_cmp * sc.factor)
         stat = abs(e)
         if stat <= m.suspect_frac * thr:
             sc.push(t, e / sigma)  # frozen while the test leans towards a fault
@@ -653,7 +699,8 @@ class HypothesisLogic:
         if "rangefinder" in self.excluded:
             envelope = None
         aux = (self._aux_verdict(GNSS, "gnss", t), self._aux_verdict(RNG, "rangefinder", t))
-        verdicts = [v for v in (*aux, self._ins_verdict(t), self._raw_verdict(), envelope)
+        verdicts = [v for v in (*aux, self._ins_verdict(t), self._raw_verdict(), envelope,
+                                self._doppler_verdict(t))
                     if v is not None] + self._level_verdicts(t)
         if self.f.kink_isolation:
             verdicts += self._kink_verdicts(t, aux)
@@ -805,7 +852,11 @@ class HypothesisLogic:
             return None
         z, sigma = raw
         h, s = ref
-        ok = abs(z - h) <= self.k_cmp * math.hypot(sigma, s) and not (c == RNG and self.envelope_failing)
+        # a GNSS whose altitude still moves against its own Doppler velocity stays out
+        # hysteresis: back only inside clear_frac of the threshold that excludes (a
+        # GNSS 5 m off with a 1 m accuracy was readmitted at 4.4 sigma, into the output)
+        ok = (abs(z - h) <= self.m.clear_frac * self.k_cmp * math.hypot(sigma, s)
+              and not (c == RNG and self.envelope_failing) and not (c == GNSS and self.doppler_over > 0))
         if not self._consistent_for(name, t, ok):
             return None
         self.excluded.discard(name)
@@ -835,11 +886,27 @@ class HypothesisLogic:
         bank.baro_on[:] = True  # differencing restarts in the aux channels
         return self.trackers["baro_ins"].set("nominal", t, f"readmitted after {self.m.readmit_s:g} s consistent")
 
-    def _ins_verdict_quiet(self, t: int) -> bool:
+    def _ins_residual(self) -> Optional[tuple]:
+        """The baro/INS statistic (m), its threshold (m) and its window (s),
+        with the noise the test itself uses: the INS model's, the measured IMU
+        scatter beyond it, and the measured scale."""
         model = self.bank.model
-        res = self.ins.residual(self.baro_white_var, 2.0 * model.sigma_a_mps2 ** 2 / model.alpha_a_per_s,
-                                model.baro_bias_rw_m_per_sqrt_s ** 2, model.sigma_bb_m ** 2, model.gamma_bb_per_s)
-        return res is not None and abs(res[0]) <= self.k_cmp * res[1]
+        iv = self.rates["baro_ins"].interval_s
+        T = max(iv, 1e-3) if iv == iv else 0.1
+        psd = 2.0 * model.sigma_a_mps2 ** 2 / model.alpha_a_per_s + self.dv_var / T
+        res = self.ins.residual(self.baro_white_var, psd, model.baro_bias_rw_m_per_sqrt_s ** 2,
+                                model.sigma_bb_m ** 2, model.gamma_bb_per_s)
+        if res is None:
+            return None
+        e, sigma, D = res
+        return e, self.k_cmp * sigma * self.scale["ins"].factor, D
+
+    def _ins_verdict_quiet(self, t: int) -> bool:
+        """Readmission: the baro agrees with the INS by the test's own noise
+        model (a stricter one than the test that excluded it is a latch: on
+        telemetry-rate IMUs the model alone never passed)."""
+        res = self._ins_residual()
+        return res is not None and abs(res[0]) <= res[1]
 
     # ------------------------------------------------------------------ feedback
 

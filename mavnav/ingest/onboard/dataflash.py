@@ -331,6 +331,9 @@ def _gnss(log: _Log, rec: OnboardRecord) -> Optional[GnssSeries]:
     fix = t["Status"].astype(np.int64)[sel]
     sats = t["NSats"].astype(np.int64)[sel]
     sigma = np.full(tt.size, np.nan)
+    # GPS.VZ is the receiver's vertical velocity, NED (down positive), in every
+    # ArduPilot version here; a receiver without it reports 0 and says so in GPA.VV
+    vel_up = -t["VZ"].astype(float)[sel] if "VZ" in t else np.full(tt.size, np.nan)
     gpa = log.table("GPA")
     if gpa is not None and "VAcc" in gpa:
         gt = log.time_us("GPA", gpa)
@@ -345,6 +348,9 @@ def _gnss(log: _Log, rec: OnboardRecord) -> Optional[GnssSeries]:
                 near = np.where(np.abs(gt[jm] - tt) < np.abs(gt[j] - tt), jm, j)
                 ok = np.abs(gt[near] - tt) <= 100_000  # GPA is logged beside its GPS record
                 sigma = np.where(ok & (vacc[near] > 0), vacc[near], np.nan)
+                if "VV" in gpa:
+                    vv = gpa["VV"].astype(float)[gsel][order]
+                    vel_up = np.where(ok & (vv[near] == 0), np.nan, vel_up)
     if "RelAlt" in t and fix.size:  # old logs: home altitude = Alt - RelAlt at a 3D fix
         good = fix >= 3
         if good.any():
@@ -352,7 +358,7 @@ def _gnss(log: _Log, rec: OnboardRecord) -> Optional[GnssSeries]:
             rec.home_alt_msl_m = float(np.median((alt - rel)[good]))
     # Keep NaN sigma through the finite-row filter: sort without it, then reattach.
     order_t, alt2, fix2, sats2, idx = _sorted(tt, alt, fix, sats, np.arange(tt.size), what="GPS[0]", damage=log.damage)
-    return GnssSeries("GPS[0]", order_t, alt2, sigma[idx], fix2, sats2)
+    return GnssSeries("GPS[0]", order_t, alt2, sigma[idx], fix2, sats2, vel_up[idx])
 
 
 def _range_limits(log: _Log):

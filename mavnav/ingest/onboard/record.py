@@ -62,6 +62,7 @@ class GnssSeries:
     sigma_m: np.ndarray  # 1-sigma vertical accuracy (GPA.VAcc, epv); NaN when not reported
     fix_type: np.ndarray  # MAVLink GPS_FIX_TYPE numbering: 3 = 3D fix, 4+ = DGPS/RTK
     satellites: np.ndarray
+    vel_up_mps: Optional[np.ndarray] = None  # Doppler vertical velocity, up (NaN: not reported)
 
 
 @dataclass

@@ -207,6 +207,7 @@ class _Builder:
         if (~fixed).any():
             self.stats.filtered["gnss_no_fix"] += int((~fixed).sum())
         t, alt, sig, fix, sats = g.t_us[fixed], g.alt_msl_m[fixed], g.sigma_m[fixed], g.fix_type[fixed], g.satellites[fixed]
+        vz = g.vel_up_mps[fixed] if g.vel_up_mps is not None else np.full(t.size, np.nan)
         if self.cfg.gnss_altitude == "ellipsoid":
             self.stats.filtered["gnss_ellipsoid_not_logged"] += 1
         if t.size == 0:
@@ -216,7 +217,7 @@ class _Builder:
             ref, origin = float(first.mean()), "startup"
         self.refs.append(ReferenceSet(int(t[0]), int(t[0]) * 1e-6, 0, "gnss", ref, ref, origin))
         self.stats.references["gnss"] = ReferenceRecord(ref, origin, ref)
-        self.cols.append((t, _GNSS, alt - ref, alt, sig, fix, sats))
+        self.cols.append((t, _GNSS, alt - ref, alt, sig, fix, sats, vz))
         return ref
 
     def _range(self, baro: Optional[np.ndarray]) -> None:
@@ -321,7 +322,9 @@ class _Builder:
                 kind, s = "baro", BaroHeight(t, recv, 0, c[2][i], c[3][i], baro_inst)
             elif tag == _GNSS:
                 sig = c[4][i]
-                kind, s = "gnss", GnssHeight(t, recv, 0, c[2][i], c[3][i], sig if sig == sig else None, c[5][i], c[6][i])
+                vz = c[7][i]
+                kind, s = "gnss", GnssHeight(t, recv, 0, c[2][i], c[3][i], sig if sig == sig else None, c[5][i], c[6][i],
+                                             vz if vz == vz else None)
             elif tag == _RANGE:
                 kind, s = "range", RangeHeight(t, recv, 0, c[2][i], c[3][i], rng_name, c[4][i], c[5][i])
             elif tag == _AP:

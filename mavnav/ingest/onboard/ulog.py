@@ -764,8 +764,11 @@ def _gnss(tp: _Topics, damage: List[str]) -> Optional[GnssSeries]:
     fix = d["fix_type"].astype(np.int64) if "fix_type" in d else np.zeros(n, dtype=np.int64)
     sats = d["satellites_used"].astype(np.int64) if "satellites_used" in d else np.zeros(n, dtype=np.int64)
     # sigma is NaN by design when not reported: only the altitude decides whether a row is finite
+    vel_up = -_f(d, "vel_d_m_s")
+    if "vel_ned_valid" in d:
+        vel_up = np.where(d["vel_ned_valid"].astype(bool), vel_up, np.nan)
     t, (alt, idx) = _clean(name, _times(d), [_gps_alt(d), np.arange(n)], damage)
-    return GnssSeries(name, t, alt, sigma[idx], fix[idx], sats[idx])
+    return GnssSeries(name, t, alt, sigma[idx], fix[idx], sats[idx], vel_up[idx])
 
 
 def _range(tp: _Topics, damage: List[str]) -> Optional[RangeSeries]:

@@ -1,0 +1,114 @@
+"""GNSS altitude against the receiver's own Doppler vertical velocity, and the
+baro against it, on every real flight that logs the velocity.
+
+    python bench/doppler_stats.py [--window 5] [paths...]
+
+For each flight with GNSS samples that carry a Doppler vertical velocity
+(ArduPilot GPS.VZ, PX4 vel_d_m_s; MAVLink telemetry has none), at every GNSS
+sample with ``window`` seconds of continuous data behind it:
+
+* ``pos-dop``: ``[h(t) - h(t - W)] - integral of v_up`` (the statistic of
+  ``mavnav/monitor/doppler.py``);
+* ``baro-dop``: the same with the baro's height change;
+* ``gnss-baro``: the GNSS height change against the baro's.
+
+Printed as the 50th, 90th, 99th percentile and the maximum of the absolute
+value, per flight and over all flights. These are the numbers that size
+``monitor.doppler_sigma_m`` (docs/integrity.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent))
+
+from realflights import find_flights  # noqa: E402
+
+from mavnav.config import config_from_dict  # noqa: E402
+from mavnav.errors import MavnavError  # noqa: E402
+from mavnav.ingest import open_log  # noqa: E402
+from mavnav.samples import BaroHeight, GnssHeight  # noqa: E402
+
+MAX_GAP_S = 1.5
+
+
+def _window_diffs(t, h, v, b, window_s):
+    """Per-sample statistics over ``window_s`` within runs without gaps."""
+    out = {"pos-dop": [], "baro-dop": [], "gnss-baro": []}
+    runs = np.split(np.arange(t.size), np.nonzero(np.diff(t) > MAX_GAP_S)[0] + 1)
+    for r in runs:
+        if r.size < 3:
+            continue
+        tt, hh, vv, bb = t[r], h[r], v[r], b[r]
+        iv = np.concatenate([[0.0], np.cumsum(0.5 * (vv[1:] + vv[:-1]) * np.diff(tt))])
+        j = np.searchsorted(tt, tt - window_s, side="right") - 1
+        ok = (j >= 0) & (tt - tt[np.maximum(j, 0)] >= 0.8 * window_s)
+        k, j = np.nonzero(ok)[0], j[ok]
+        dint = iv[k] - iv[j]
+        out["pos-dop"].append((hh[k] - hh[j]) - dint)
+        out["baro-dop"].append((bb[k] - bb[j]) - dint)
+        out["gnss-baro"].append((hh[k] - hh[j]) - (bb[k] - bb[j]))
+    return {key: np.concatenate(v) if v else np.zeros(0) for key, v in out.items()}
+
+
+def flight(path: str, window_s: float):
+    cfg = config_from_dict({})
+    g, b = [], []
+    for s in open_log(path, cfg.ingest):
+        if getattr(s, "boot", 0) != 0:
+            continue
+        if isinstance(s, GnssHeight) and s.vel_up_mps is not None and math.isfinite(s.vel_up_mps):
+            g.append((s.t_us * 1e-6, s.height_ref_m, s.vel_up_mps))
+        elif isinstance(s, BaroHeight):
+            b.append((s.t_us * 1e-6, s.height_ref_m))
+    if len(g) < 10 or len(b) < 10:
+        return None
+    g, b = np.asarray(g), np.asarray(b)
+    bi = np.interp(g[:, 0], b[:, 0], b[:, 1])
+    d = _window_diffs(g[:, 0], g[:, 1], g[:, 2], bi, window_s)
+    if d["pos-dop"].size < 5:
+        return None
+    return {"hz": len(g) / max(g[-1, 0] - g[0, 0], 1e-9), **d}
+
+
+def _q(e):
+    return " ".join(f"{x:5.2f}" for x in np.percentile(np.abs(e), [50, 90, 99, 100]))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("paths", nargs="*")
+    ap.add_argument("--window", type=float, default=5.0, help="seconds (monitor.doppler_window_s)")
+    args = ap.parse_args(argv)
+    paths = args.paths or [str(p) for ps in find_flights().values() for p in ps]
+    tot = {"pos-dop": [], "baro-dop": [], "gnss-baro": []}
+    print(f"window {args.window:g} s; |e| percentiles 50/90/99/max (m)")
+    print("| flight | GNSS Hz | samples | pos-dop | baro-dop | gnss-baro |")
+    print("|---|---|---|---|---|---|")
+    for p in paths:
+        try:
+            r = flight(p, args.window)
+        except MavnavError:
+            continue
+        if r is None:
+            continue
+        print(f"| {Path(p).name} | {r['hz']:.1f} | {r['pos-dop'].size} | {_q(r['pos-dop'])} | "
+              f"{_q(r['baro-dop'])} | {_q(r['gnss-baro'])} |")
+        for k in tot:
+            tot[k].append(r[k])
+    for k, v in tot.items():
+        if v:
+            print(f"all flights, {k}: {_q(np.concatenate(v))}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,155 @@
+"""The GNSS altitude against the receiver's own Doppler vertical velocity:
+the pure check on exact series, the velocity read from a real DataFlash log
+against pymavlink's own decoding, and the test in the monitor on that real
+flight with faults injected into its GNSS altitude."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from mavnav.config import config_from_dict
+from mavnav.ingest import open_log
+from mavnav.monitor.doppler import DopplerCheck
+from mavnav.pipeline import run
+from mavnav.samples import GnssHeight
+from mavnav.sim.effects import SampleFaults
+from mavnav.sim.faults import parse_fault
+from tests.support.paths import SHARED_FLIGHTLOGS
+
+DKLA = SHARED_FLIGHTLOGS / "dkla_log171.bin"  # ArduCopter 3.3, GPS with VZ at 5 Hz
+
+
+def _series(check, t_s, h_m, v_mps):
+    return [check.push(int(round(t * 1e6)), h, v) for t, h, v in zip(t_s, h_m, v_mps)]
+
+
+@pytest.mark.unit
+def test_a_receiver_whose_altitude_follows_its_velocity_reads_zero():
+    t = np.arange(0.0, 20.0, 0.2)
+    v = 1.5 * np.sin(0.4 * t)  # climbing and descending
+    h = 3.0 + (1.5 / 0.4) * (1.0 - np.cos(0.4 * t))  # its exact integral
+    e = _series(DopplerCheck(5.0, 1.5), t, h, v)
+    assert all(x is None for x in e[:20])  # less than 80 % of a window held
+    got = [x for x in e if x is not None]
+    assert len(got) > 70
+    assert max(abs(x) for x in got) < 0.02  # the trapezoid's own error on this curve
+
+
+@pytest.mark.unit
+def test_a_position_ramp_reads_its_rate_times_the_window_and_a_step_its_size():
+    t = np.arange(0.0, 40.0, 0.2)
+    v = np.zeros_like(t)
+    ramp = np.where(t >= 10.0, 0.5 * (t - 10.0), 0.0)
+    e = _series(DopplerCheck(5.0, 1.5), t, ramp, v)
+    at = {round(ti, 1): x for ti, x in zip(t, e)}
+    assert at[12.0] == pytest.approx(1.0, abs=1e-9)
+    assert at[20.0] == pytest.approx(2.5, abs=1e-9)  # the rate over the whole window
+    step = np.where(t >= 10.0, 10.0, 0.0)
+    e = _series(DopplerCheck(5.0, 1.5), t, step, v)
+    at = {round(ti, 1): x for ti, x in zip(t, e)}
+    assert at[10.0] == pytest.approx(10.0) and at[14.8] == pytest.approx(10.0)
+    assert at[15.2] == pytest.approx(0.0)  # seen for one window, then the new level is the reference
+
+
+@pytest.mark.unit
+def test_a_fault_in_position_and_velocity_together_is_not_seen():
+    t = np.arange(0.0, 30.0, 0.2)
+    v = np.where(t >= 10.0, 0.5, 0.0)
+    h = np.where(t >= 10.0, 0.5 * (t - 10.0), 0.0)
+    e = [x for x in _series(DopplerCheck(5.0, 1.5), t, h, v) if x is not None]
+    assert max(abs(x) for x in e) < 0.06  # only the trapezoid across the corner
+
+
+@pytest.mark.unit
+def test_gaps_and_missing_velocity_restart_the_integral():
+    c = DopplerCheck(5.0, 1.5)
+    for i in range(30):
+        c.push(i * 200_000, 0.0, 0.0)
+    assert c.push(6_000_000, 0.0, 0.0) is not None
+    assert c.push(8_000_000, 50.0, 0.0) is None  # 2 s gap: a new start, the jump is not read as a fault
+    assert c.push(8_200_000, 50.0, math.nan) is None
+    assert not c.hist
+    assert c.push(8_000_000, 1.0, 0.0) is None  # time going backwards restarts it too
+
+
+@pytest.mark.realdata
+def test_the_velocity_is_the_logs_own_gps_vz_up():
+    pytest.importorskip("pymavlink")
+    from pymavlink import DFReader
+
+    cfg = config_from_dict({})
+    ours = [s for s in open_log(str(DKLA), cfg.ingest) if isinstance(s, GnssHeight)]
+    f = DFReader.DFReader_binary(str(DKLA))
+    theirs = []  # this log's GPS rows carry GPS time of week, not boot time: compare in file order
+    while True:
+        m = f.recv_match(type="GPS")
+        if m is None:
+            break
+        if getattr(m, "I", 0) == 0 and m.Status >= 3:
+            theirs.append(-float(m.VZ))
+    assert len(ours) > 1000
+    assert all(s.vel_up_mps is not None for s in ours)
+    assert [s.vel_up_mps for s in ours] == theirs
+    assert max(abs(v) for v in theirs) > 1.0  # the flight climbs and descends: not a column of zeros
+
+
+def _run(samples, cfg):
+    return [ev for ev in run(samples, cfg, []).alarms if ev.source != "input"]
+
+
+def _first_alarm(events, onset_s, end_s):
+    hits = [ev for ev in events if ev.state == "alarm" and ev.previous != "alarm" and onset_s <= ev.t_s <= end_s]
+    if not hits:
+        return None, ()
+    t = hits[0].t_s
+    return t - onset_s, tuple(sorted({ev.source for ev in hits if abs(ev.t_s - t) < 1e-6}))
+
+
+@pytest.mark.realdata
+@pytest.mark.slow
+@pytest.mark.parametrize("onset_s", [120.0, 190.0])
+def test_a_gnss_ramp_on_a_real_flight_is_pinned_on_the_gnss_by_its_own_doppler(onset_s):
+    """0.5 m/s for 20 s: the GNSS alone, before 3 m of error (6 s); without
+    the Doppler test the same run is later on the same flight."""
+    spec = f"gnss_ramp:onset={onset_s:g},duration=20,magnitude=0.5"
+    tta = {}
+    for on in (True, False):
+        cfg = config_from_dict({"monitor": {"features": {"doppler_check": on}}})
+        samples = list(SampleFaults([parse_fault(spec)]).apply(open_log(str(DKLA), cfg.ingest)))
+        events = _run(samples, cfg)
+        tta[on], blamed = _first_alarm(events, onset_s, onset_s + 22.0)
+        if on:
+            assert blamed == ("gnss",)
+            assert tta[on] < 6.0
+            assert any("Doppler" in ev.reason for ev in events if ev.source == "gnss" and ev.state == "alarm")
+            # and back once the GNSS is right again
+            assert any(ev.source == "gnss" and ev.previous == "alarm" and ev.state == "nominal"
+                       and ev.t_s > onset_s + 20.0 for ev in events)
+    assert tta[False] is None or tta[False] > tta[True] + 3.0
+
+
+@pytest.mark.realdata
+@pytest.mark.slow
+def test_a_ramp_in_position_and_velocity_together_is_never_blamed_on_the_doppler():
+    """Spoofing moves both: the test passes, and its pass rules nothing out
+    (it must not clear the GNSS and let the baro be blamed)."""
+    onset_s, rate = 120.0, 0.5
+    cfg = config_from_dict({})
+    on_us, off_us = int(onset_s * 1e6), int((onset_s + 20.0) * 1e6)
+    samples = []
+    for s in open_log(str(DKLA), cfg.ingest):
+        if isinstance(s, GnssHeight) and on_us <= s.t_us < off_us:
+            dh = rate * (s.t_us - on_us) * 1e-6
+            s = dataclasses.replace(s, height_ref_m=s.height_ref_m + dh, alt_m=s.alt_m + dh,
+                                    vel_up_mps=s.vel_up_mps + rate)
+        samples.append(s)
+    events = _run(samples, cfg)
+    # while it lasts (its end is a position-only step back, which the test does see)
+    assert not any("Doppler" in ev.reason for ev in events if onset_s <= ev.t_s < onset_s + 20.0)
+    # the baro is never excluded for the GNSS's fault
+    assert not any(ev.source == "baro_ins" and ev.state == "alarm" and onset_s <= ev.t_s <= onset_s + 22.0
+                   for ev in events)
