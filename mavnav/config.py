@@ -230,6 +230,7 @@ class AdaptiveFeatures(_Section):
     inverse_variance: bool = True  # fuse by inverse (co)variance, else the arithmetic mean
     kink_isolation: bool = True  # an aux-baro drift pinned on whichever bent against the INS (monitor/kink.py)
     doppler_check: bool = True  # GNSS altitude against its own Doppler velocity (monitor/doppler.py)
+    ins_doppler_check: bool = True  # the INS's velocity change against the Doppler's (monitor/doppler.py)
 
 
 class MonitorConfig(_Section):
@@ -333,6 +334,12 @@ class MonitorConfig(_Section):
     doppler_window_s: float = Field(5.0, gt=0)
     doppler_sigma_m: float = Field(0.35, gt=0)
     doppler_max_gap_s: float = Field(1.5, gt=0)
+    # The INS's velocity change against the Doppler's over the same window,
+    # against k(false_alarm_prob) times sqrt(ins_doppler_sigma_mps^2 + the
+    # measured IMU scatter over the window) times its measured scale.
+    # ins_doppler_sigma_mps: the 99th percentile of |e_v| over 5 s on the
+    # modern IMUs here is 0.3-1.0 m/s (docs/integrity.md).
+    ins_doppler_sigma_mps: float = Field(0.25, gt=0)
     # Rangefinder envelope: readings refused below its minimum (or above its
     # maximum) while the other sources put the vehicle more than margin inside
     # its range, for most of a window, are a rangefinder failure.

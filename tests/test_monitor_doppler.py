@@ -153,3 +153,65 @@ def test_a_ramp_in_position_and_velocity_together_is_never_blamed_on_the_doppler
     # the baro is never excluded for the GNSS's fault
     assert not any(ev.source == "baro_ins" and ev.state == "alarm" and onset_s <= ev.t_s <= onset_s + 22.0
                    for ev in events)
+
+
+# ---------------------------------------------------------------- INS against the Doppler
+
+
+def _ins_doppler(t_s, v_ins, v_dop, var=0.0, bias=0.0):
+    """Feed epochs: the INS velocity increments (the epoch builder's dv, here
+    from an exact INS velocity ``v_ins``) and the GNSS Doppler at each."""
+    from mavnav.monitor.doppler import InsDopplerCheck
+
+    c = InsDopplerCheck(5.0, 1.5)
+    out = []
+    for i, (t, v) in enumerate(zip(t_s, v_dop)):
+        dt = t - t_s[i - 1] if i else 0.0
+        c.push_ins(dt, v_ins[i] - v_ins[i - 1] if i else 0.0, var, bias)
+        out.append(c.push_gnss(int(round(t * 1e6)), v))
+    return c, out
+
+
+@pytest.mark.unit
+def test_an_ins_that_agrees_with_the_doppler_reads_zero_and_an_accelerometer_bias_its_integral():
+    t = np.arange(0.0, 30.0, 0.2)
+    v = 1.6 * np.sin(0.5 * t)  # climbing and descending; INS and Doppler agree
+    _, e = _ins_doppler(t, v, v)
+    got = [x for x in e if x is not None]
+    assert len(got) > 100 and max(abs(x) for x in got) < 1e-9
+    biased = v + np.where(t >= 10.0, 0.5 * (t - 10.0), 0.0)  # accelerometer bias step 0.5 m/s^2 at 10 s
+    _, e = _ins_doppler(t, biased, v)
+    at = {round(ti, 1): x for ti, x in zip(t, e)}
+    assert at[12.0] == pytest.approx(-1.0, abs=1e-9)
+    assert at[20.0] == pytest.approx(-2.5, abs=1e-9)  # the INS gained 0.5 m/s^2 x 5 s the Doppler did not
+    # the channel's bias estimate, once it has it, takes it out
+    _, e = _ins_doppler(t, v + 0.5 * t, v, bias=0.5)
+    assert max(abs(x) for x in e if x is not None) < 1e-9
+
+
+@pytest.mark.unit
+def test_the_ins_scatter_over_the_window_is_reported_for_the_threshold():
+    t = np.arange(0.0, 12.0, 0.2)
+    c, e = _ins_doppler(t, np.zeros_like(t), np.zeros_like(t), var=0.01)
+    assert e[-1] == pytest.approx(0.0)
+    assert c.last_var_mps2 == pytest.approx(0.01 * 25, rel=1e-9)  # 25 epochs in the 5 s window
+
+
+@pytest.mark.realdata
+@pytest.mark.slow
+@pytest.mark.parametrize("onset_s", [120.0, 190.0])
+def test_an_accelerometer_bias_on_a_real_flight_is_the_ins_not_the_gnss(onset_s):
+    """0.5 m/s^2 for 20 s on dkla_log171: the INS's own source (baro_ins)
+    alone; never the GNSS; and the INS is readmitted only after the fault
+    ends (the Doppler vouches for it)."""
+    spec = f"accel_bias_step:onset={onset_s:g},duration=20,magnitude=0.5"
+    cfg = config_from_dict({})
+    samples = list(SampleFaults([parse_fault(spec)]).apply(open_log(str(DKLA), cfg.ingest)))
+    events = _run(samples, cfg)
+    tta, blamed = _first_alarm(events, onset_s, onset_s + 22.0)
+    assert blamed == ("baro_ins",) and tta < 10.0
+    assert not any(ev.source == "gnss" and ev.state == "alarm" and onset_s <= ev.t_s <= onset_s + 30.0
+                   for ev in events)
+    back = [ev for ev in events if ev.source == "baro_ins" and ev.previous == "alarm" and ev.state == "nominal"
+            and ev.t_s > onset_s]
+    assert back and back[0].t_s > onset_s + 20.0

@@ -70,3 +70,59 @@ class DopplerCheck:
         self.last_e_m = e
         self.last_us = t_us
         return e
+
+
+class InsDopplerCheck:
+    """The INS's vertical velocity change against the receiver's Doppler
+    velocity change over ``window_s``:
+
+        e_v = [v_dop(t) - v_dop(t - W)] - [V_ins(t) - V_ins(t - W)],
+
+    ``V_ins`` the chained increments of ``f_up - g`` less the channel's
+    accelerometer-bias estimate. An accelerometer fault moves ``V_ins`` and
+    not the Doppler; a fault in the GNSS velocity (spoofing moves position and
+    velocity together) moves the Doppler and not the INS; a baro fault or a
+    GNSS position-only fault moves neither. The variance the INS adds is the
+    measured scatter of held IMU snapshots over the window (the epoch
+    builder's ``dv_var``), chained like the velocity, so a telemetry-rate IMU
+    widens the test instead of failing it."""
+
+    __slots__ = ("window_us", "max_gap_us", "_vel", "_var", "hist", "last_e_mps", "last_var_mps2", "last_us")
+
+    def __init__(self, window_s: float, max_gap_s: float):
+        self.window_us = int(window_s * 1e6)
+        self.max_gap_us = int(max_gap_s * 1e6)
+        self._vel = 0.0
+        self._var = 0.0
+        self.hist: deque = deque()  # (t_us, v_dop, V_ins, var_ins)
+        self.last_e_mps = math.nan
+        self.last_var_mps2 = 0.0
+        self.last_us: Optional[int] = None
+
+    def clear(self) -> None:
+        self.hist.clear()
+        self.last_e_mps = math.nan
+
+    def push_ins(self, dt_s: float, dv_mps: float, dv_var_m2ps2: float, acc_bias_mps2: float) -> None:
+        self._vel += dv_mps - acc_bias_mps2 * dt_s
+        self._var += max(dv_var_m2ps2, 0.0)
+
+    def push_gnss(self, t_us: int, vel_up_mps: float) -> Optional[float]:
+        if not math.isfinite(vel_up_mps):
+            self.clear()
+            return None
+        h = self.hist
+        if h and (t_us <= h[-1][0] or t_us - h[-1][0] > self.max_gap_us):
+            h.clear()
+        h.append((t_us, vel_up_mps, self._vel, self._var))
+        start = t_us - self.window_us
+        while len(h) > 2 and h[1][0] <= start:
+            h.popleft()
+        t_j, v_j, V_j, var_j = h[0]
+        if t_us - t_j < 0.8 * self.window_us:
+            return None
+        e = (vel_up_mps - v_j) - (self._vel - V_j)
+        self.last_e_mps = e
+        self.last_var_mps2 = self._var - var_j
+        self.last_us = t_us
+        return e

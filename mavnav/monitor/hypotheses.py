@@ -49,7 +49,7 @@ from ..channel import EpochInputs
 from ..config import Config
 from .cusum import Cusum, threshold_for
 from .decision import Decision, diff_sigmas, pair_reports
-from .doppler import DopplerCheck
+from .doppler import DopplerCheck, InsDopplerCheck
 from .fusion import fuse_heights
 from .inscheck import InsBaroCheck
 from .kink import KinkSeries, MeanSquare, isolate, kink_fit, onsets
@@ -173,6 +173,13 @@ class HypothesisLogic:
         self.scale["doppler"] = ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0)
         self.doppler_over = 0
         self.doppler_since: Optional[int] = None
+        # the INS's velocity change against the Doppler's: the check, its scale,
+        # this epoch's Doppler sample (taken after the epoch's INS increment)
+        self.ins_doppler = InsDopplerCheck(m.doppler_window_s, m.doppler_max_gap_s)
+        self.scale["ins_doppler"] = ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0)
+        self.insdop_over = 0
+        self.insdop_since: Optional[int] = None
+        self.pending_doppler: Optional[tuple] = None
 
     # ------------------------------------------------------------------ refused readings
 
@@ -248,6 +255,8 @@ class HypothesisLogic:
             self.sensor_var_floor[c] = aux.sigma_m * aux.sigma_m
             if c == GNSS and self.f.doppler_check:
                 self._push_doppler(t - int(aux.age_s * 1e6), aux)
+            if c == GNSS and self.f.ins_doppler_check:
+                self.pending_doppler = (t, aux.vel_up_mps)
             field_name = "gnss" if c == GNSS else "rng"
             if name in self.excluded:
                 changes[field_name] = None  # the channel coasts; readmission decides later
@@ -333,6 +342,60 @@ class HypothesisLogic:
             return Verdict("GNSS/Doppler", "suspect", gnss, stat=abs(e), threshold=thr, text=txt)
         return Verdict("GNSS/Doppler", "pass", gnss, frozenset(), abs(e), thr)
 
+    def _push_ins_doppler(self, ep: EpochInputs) -> None:
+        d = self.ins_doppler
+        d.push_ins(ep.dt_s, ep.dv_mps, ep.dv_var_m2ps2, float(self.bank.x[BARO, 3]))
+        pend, self.pending_doppler = self.pending_doppler, None
+        if pend is None:
+            return
+        e = d.push_gnss(*pend)
+        if e is None:
+            self.insdop_over, self.insdop_since = 0, None
+            return
+        thr = self._ins_doppler_thr()
+        if abs(e) > thr:
+            self.insdop_over += 1
+            if self.insdop_since is None:
+                self.insdop_since = pend[0]
+        else:
+            self.insdop_over, self.insdop_since = 0, None
+            if abs(e) <= self.m.suspect_frac * thr:
+                self.scale["ins_doppler"].push(pend[0], e / self._ins_doppler_sigma())
+
+    def _ins_doppler_sigma(self) -> float:
+        return math.sqrt(self.m.ins_doppler_sigma_mps ** 2 + self.ins_doppler.last_var_mps2)
+
+    def _ins_doppler_thr(self) -> float:
+        return self.k_cmp * self._ins_doppler_sigma() * self.scale["ins_doppler"].factor
+
+    def _ins_doppler_verdict(self, t: int) -> Optional[Verdict]:
+        """The INS's velocity change against the Doppler's: a failure
+        implicates the INS and the GNSS (its velocity); a clear pass rules out
+        the INS. Sizes in the baro/INS check's metres, so the two INS tests
+        weigh each other: an accelerometer error ``e / W`` makes a second
+        difference of ``(e / W) D^2 / 2`` over that check's two windows
+        (``D = 2 ins_window_s``)."""
+        d = self.ins_doppler
+        if (not self.f.ins_doppler_check or "gnss" in self.excluded or self._warm("gnss", t)
+                or d.last_us is None or t - d.last_us > self.stale_us[GNSS] or d.last_e_mps != d.last_e_mps):
+            return None
+        thr = self._ins_doppler_thr()
+        e = d.last_e_mps
+        D = 2.0 * self.m.ins_window_s
+        to_m = 0.5 * D * D / self.m.doppler_window_s
+        txt = (f"INS velocity changed {-e:+.2f} m/s against the GNSS Doppler over "
+               f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m/s)")
+        implicates = frozenset(("ins", "gnss"))
+        if abs(e) > thr:
+            if self.insdop_over >= 2 and t - self.insdop_since >= self.persist_us:
+                return Verdict("INS/Doppler", "fail", implicates, stat=abs(e), threshold=thr, text=txt,
+                               scale_m=abs(e) * to_m)
+            return Verdict("INS/Doppler", "suspect", implicates, stat=abs(e), threshold=thr, text=txt)
+        if abs(e) > self.m.suspect_frac * thr:
+            return Verdict("INS/Doppler", "suspect", implicates, stat=abs(e), threshold=thr, text=txt)
+        clear = frozenset(("ins",)) if abs(e) < self.m.clear_frac * thr else frozenset()
+        return Verdict("INS/Doppler", "pass", implicates, clear, abs(e), thr, scale_m=thr * to_m)
+
     def _anchor(self) -> int:
         best, best_var = BARO, math.inf
         for c, name in AUX:
@@ -410,7 +473,10 @@ class HypothesisLogic:
         rej = self.rejections[name].rejected
         # with the baro in the channel, the INS between aux samples is held by the
         # baro rows (an INS fault shows there first, in the baro/INS test)
-        implicates = frozenset((name, "baro")) if self.bank.baro_on[c] else frozenset((name, "ins"))
+        # the channel's prediction rests on the baro and on the INS between its
+        # samples: an accelerometer fault drifts its innovations too (it had pinned
+        # INS faults on the GNSS once the INS/Doppler test implicated INS or GNSS)
+        implicates = frozenset((name, "baro", "ins")) if self.bank.baro_on[c] else frozenset((name, "ins"))
         label = LABEL[name]
         sudden = self.sudden.get(name)
         if sudden is not None and t - sudden[0] > self.rejections[name].length_us:
@@ -685,6 +751,8 @@ class HypothesisLogic:
             w.expire(t)
         self.raw_check.push(t, self.pending_raw[GNSS], self.pending_raw[RNG])
         self.ins.push(t, ep.dt_s, ep.dp_m, ep.dv_mps, ep.baro_m, bank.x[BARO], bank.P[BARO])
+        if self.f.ins_doppler_check:
+            self._push_ins_doppler(ep)
         if self.f.kink_isolation:
             self._push_kinks(t, ep.baro_m)
         if self.baro_judged is not None:
@@ -700,7 +768,7 @@ class HypothesisLogic:
             envelope = None
         aux = (self._aux_verdict(GNSS, "gnss", t), self._aux_verdict(RNG, "rangefinder", t))
         verdicts = [v for v in (*aux, self._ins_verdict(t), self._raw_verdict(), envelope,
-                                self._doppler_verdict(t))
+                                self._doppler_verdict(t), self._ins_doppler_verdict(t))
                     if v is not None] + self._level_verdicts(t)
         if self.f.kink_isolation:
             verdicts += self._kink_verdicts(t, aux)
@@ -870,7 +938,9 @@ class HypothesisLogic:
         bank = self.bank
         rej = self.rejections["baro_ins"].rejected
         v = self._ins_verdict_quiet(t)
-        ok = v and rej == 0 and self.last_baro_m is not None
+        # and not while the INS still disagrees with the GNSS Doppler (the INS is
+        # half of this source: an accelerometer fault must end before it is back)
+        ok = v and rej == 0 and self.last_baro_m is not None and self.insdop_over == 0
         if ok:
             for c, name in AUX:
                 if name in self.excluded or not self._available(t)[c]:
@@ -884,6 +954,11 @@ class HypothesisLogic:
         self.excluded.discard("baro_ins")
         self.rejections["baro_ins"].clear()
         bank.baro_on[:] = True  # differencing restarts in the aux channels
+        # the aux channels' sequential tests summed innovations their channel made
+        # while it rested on the faulty source: that evidence is spent
+        for _, name in AUX:
+            self.cusum[name].clear()
+            self.rejections[name].clear()
         return self.trackers["baro_ins"].set("nominal", t, f"readmitted after {self.m.readmit_s:g} s consistent")
 
     def _ins_residual(self) -> Optional[tuple]:
