@@ -231,6 +231,7 @@ class AdaptiveFeatures(_Section):
     kink_isolation: bool = True  # an aux-baro drift pinned on whichever bent against the INS (monitor/kink.py)
     doppler_check: bool = True  # GNSS altitude against its own Doppler velocity (monitor/doppler.py)
     ins_doppler_check: bool = True  # the INS's velocity change against the Doppler's (monitor/doppler.py)
+    baro_doppler_check: bool = False  # the baro's change against the Doppler's integral (alerts only)
 
 
 class MonitorConfig(_Section):
@@ -340,6 +341,10 @@ class MonitorConfig(_Section):
     # ins_doppler_sigma_mps: the 99th percentile of |e_v| over 5 s on the
     # modern IMUs here is 0.3-1.0 m/s (docs/integrity.md).
     ins_doppler_sigma_mps: float = Field(0.25, gt=0)
+    # The baro's change against the Doppler's integral over the same window
+    # (features.baro_doppler_check): the 99th percentile of |e| over 5 s on the
+    # modern receivers here is 0.5-1.8 m.
+    baro_doppler_sigma_m: float = Field(0.4, gt=0)
     # Rangefinder envelope: readings refused below its minimum (or above its
     # maximum) while the other sources put the vehicle more than margin inside
     # its range, for most of a window, are a rangefinder failure.

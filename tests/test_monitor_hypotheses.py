@@ -141,3 +141,18 @@ def test_a_baro_spike_is_gated_and_a_baro_step_alarms_within_a_second():
     step = fly(("baro", "step", 40.0, 20.0, 6.0))
     first = step.first_alarm_after(40.0)
     assert list(first) == ["baro_ins"] and first["baro_ins"] - 40.0 <= 1.0
+
+
+@pytest.mark.unit
+def test_a_failure_can_be_sized_per_hypothesis():
+    """One INS-against-Doppler failure: 5 m of position if it is the GNSS's
+    velocity, 1 m of the baro/INS check's second difference if it is the INS.
+    A coarse INS pass (3 m) cannot rule the INS out; a GNSS pass as coarse can
+    rule the GNSS out."""
+    f = Verdict("INS/Doppler", "fail", frozenset((G, I)), text="x", scale_m=5.0, sizes={I: 1.0})
+    assert f.size_for(I) == 1.0 and f.size_for(G) == 5.0
+    j = judge([f, clear(I, scale=3.0), clear(G, scale=3.0)])
+    assert j.situation == "isolated" and set(j.sources) == {"baro_ins"} and j.candidates == {I}
+    # sized alike (no per-hypothesis sizes) both passes would clear, and nothing would be left
+    g = Verdict("INS/Doppler", "fail", frozenset((G, I)), text="x", scale_m=5.0)
+    assert judge([g, clear(I, scale=3.0), clear(G, scale=3.0)]).situation == "inconsistent"

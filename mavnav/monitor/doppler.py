@@ -126,3 +126,29 @@ class InsDopplerCheck:
         self.last_var_mps2 = self._var - var_j
         self.last_us = t_us
         return e
+
+
+class Exceedance:
+    """Consecutive samples of a statistic past its threshold, and since when:
+    a test fails on two in a row held ``persist_us`` (one outlier is the
+    gate's business)."""
+
+    __slots__ = ("count", "since_us")
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.since_us: Optional[int] = None
+
+    def update(self, t_us: int, over: bool) -> None:
+        if over:
+            self.count += 1
+            if self.since_us is None:
+                self.since_us = t_us
+        else:
+            self.reset()
+
+    def reset(self) -> None:
+        self.count, self.since_us = 0, None
+
+    def persistent(self, t_us: int, persist_us: int) -> bool:
+        return self.count >= 2 and self.since_us is not None and t_us - self.since_us >= persist_us

@@ -49,7 +49,7 @@ from ..channel import EpochInputs
 from ..config import Config
 from .cusum import Cusum, threshold_for
 from .decision import Decision, diff_sigmas, pair_reports
-from .doppler import DopplerCheck, InsDopplerCheck
+from .doppler import DopplerCheck, Exceedance, InsDopplerCheck
 from .fusion import fuse_heights
 from .inscheck import InsBaroCheck
 from .kink import KinkSeries, MeanSquare, isolate, kink_fit, onsets
@@ -171,15 +171,19 @@ class HypothesisLogic:
         # scale (it only widens), consecutive GNSS samples past the threshold
         self.doppler = DopplerCheck(m.doppler_window_s, m.doppler_max_gap_s)
         self.scale["doppler"] = ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0)
-        self.doppler_over = 0
-        self.doppler_since: Optional[int] = None
+        self.doppler_ex = Exceedance()
+        # the baro against the same Doppler velocity (alerts, never clears)
+        self.baro_doppler = DopplerCheck(m.doppler_window_s, m.doppler_max_gap_s)
+        self.scale["baro_doppler"] = ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0)
+        self.baro_doppler_ex = Exceedance()
         # the INS's velocity change against the Doppler's: the check, its scale,
         # this epoch's Doppler sample (taken after the epoch's INS increment)
         self.ins_doppler = InsDopplerCheck(m.doppler_window_s, m.doppler_max_gap_s)
         self.scale["ins_doppler"] = ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0)
-        self.insdop_over = 0
-        self.insdop_since: Optional[int] = None
+        self.insdop_ex = Exceedance()
         self.pending_doppler: Optional[tuple] = None
+        self.ins_excluded = False  # the baro+INS source is out for its INS (not only its baro)
+        self.ins_doubt = False  # an INS test is not passing this epoch
 
     # ------------------------------------------------------------------ refused readings
 
@@ -289,7 +293,7 @@ class HypothesisLogic:
             if absent:
                 self.scale[name].gap()
             if not self._warm(name, t):
-                if self.f.window_test:
+                if self.f.window_test and not ("baro_ins" in self.excluded and self.ins_excluded):
                     sc = self.scale[name]
                     self.cusum[name].push(z / sc.factor)
                     if not reject and self.cusum[name].stat < self.m.suspect_frac * self._h(name):
@@ -305,20 +309,28 @@ class HypothesisLogic:
     def _doppler_thr(self) -> float:
         return self.k_cmp * self.m.doppler_sigma_m * self.scale["doppler"].factor
 
-    def _push_doppler(self, t_meas: int, aux) -> None:
-        e = self.doppler.push(t_meas, aux.height_m, aux.vel_up_mps)
+    def _push_window(self, check, key: str, ex: Exceedance, sigma: float, t_meas: int, h: float, v: float) -> None:
+        """One sample into a Doppler window check: its exceedance, and its
+        measured scale (frozen while it leans towards a fault)."""
+        e = check.push(t_meas, h, v)
         if e is None:
-            self.doppler_over, self.doppler_since = 0, None
+            ex.reset()
             return
-        thr = self._doppler_thr()
-        if abs(e) > thr:
-            self.doppler_over += 1
-            if self.doppler_since is None:
-                self.doppler_since = t_meas
-        else:
-            self.doppler_over, self.doppler_since = 0, None
-            if abs(e) <= self.m.suspect_frac * thr:
-                self.scale["doppler"].push(t_meas, e / self.m.doppler_sigma_m)  # frozen while it leans to a fault
+        thr = self.k_cmp * sigma * self.scale[key].factor
+        ex.update(t_meas, abs(e) > thr)
+        if abs(e) <= self.m.suspect_frac * thr:
+            self.scale[key].push(t_meas, e / sigma)
+
+    def _push_doppler(self, t_meas: int, aux) -> None:
+        self._push_window(self.doppler, "doppler", self.doppler_ex, self.m.doppler_sigma_m,
+                          t_meas, aux.height_m, aux.vel_up_mps)
+        if self.last_baro_m is not None:  # its verdict is optional; readmission always heeds it
+            # the latest baro carried to the GNSS sample's time by the Doppler velocity
+            iv = self.rates["baro_ins"].interval_s
+            if iv == iv and abs(t_meas - self.last_baro_us) <= 2e6 * iv:
+                b = self.last_baro_m + aux.vel_up_mps * (t_meas - self.last_baro_us) * 1e-6
+                self._push_window(self.baro_doppler, "baro_doppler", self.baro_doppler_ex,
+                                  self.m.baro_doppler_sigma_m, t_meas, b, aux.vel_up_mps)
 
     def _doppler_verdict(self, t: int) -> Optional[Verdict]:
         """The GNSS altitude against its own Doppler velocity
@@ -335,12 +347,35 @@ class HypothesisLogic:
         gnss = frozenset(("gnss",))
         if abs(e) > thr:
             # two samples in a row, and persist_s: one outlier is the gate's business
-            if self.doppler_over >= 2 and t - self.doppler_since >= self.persist_us:
+            if self.doppler_ex.persistent(t, self.persist_us):
                 return Verdict("GNSS/Doppler", "fail", gnss, stat=abs(e), threshold=thr, text=txt, scale_m=abs(e))
             return Verdict("GNSS/Doppler", "suspect", gnss, stat=abs(e), threshold=thr, text=txt)
         if abs(e) > self.m.suspect_frac * thr:
             return Verdict("GNSS/Doppler", "suspect", gnss, stat=abs(e), threshold=thr, text=txt)
         return Verdict("GNSS/Doppler", "pass", gnss, frozenset(), abs(e), thr)
+
+    def _baro_doppler_verdict(self, t: int) -> Optional[Verdict]:
+        """The baro's change against the GNSS Doppler's integral over the same
+        window: a failure implicates the baro and the GNSS (its velocity); a
+        pass rules nothing out (a window sees a ramp's rate, not its size:
+        a slow baro ramp passes it while its error grows)."""
+        d = self.baro_doppler
+        if (not self.f.baro_doppler_check or {"gnss", "baro_ins"} & self.excluded or self._warm("gnss", t)
+                or d.last_us is None or t - d.last_us > self.stale_us[GNSS] or d.last_e_m != d.last_e_m):
+            return None
+        thr = self.k_cmp * self.m.baro_doppler_sigma_m * self.scale["baro_doppler"].factor
+        e = d.last_e_m
+        txt = (f"baro moved {e:+.2f} m against the GNSS Doppler velocity over "
+               f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m)")
+        implicates = frozenset(("baro", "gnss"))
+        if abs(e) > thr:
+            if self.baro_doppler_ex.persistent(t, self.persist_us):
+                return Verdict("baro/Doppler", "fail", implicates, stat=abs(e), threshold=thr, text=txt,
+                               scale_m=abs(e))
+            return Verdict("baro/Doppler", "suspect", implicates, stat=abs(e), threshold=thr, text=txt)
+        if abs(e) > self.m.suspect_frac * thr:
+            return Verdict("baro/Doppler", "suspect", implicates, stat=abs(e), threshold=thr, text=txt)
+        return Verdict("baro/Doppler", "pass", implicates, frozenset(), abs(e), thr)
 
     def _push_ins_doppler(self, ep: EpochInputs) -> None:
         d = self.ins_doppler
@@ -350,17 +385,12 @@ class HypothesisLogic:
             return
         e = d.push_gnss(*pend)
         if e is None:
-            self.insdop_over, self.insdop_since = 0, None
+            self.insdop_ex.reset()
             return
         thr = self._ins_doppler_thr()
-        if abs(e) > thr:
-            self.insdop_over += 1
-            if self.insdop_since is None:
-                self.insdop_since = pend[0]
-        else:
-            self.insdop_over, self.insdop_since = 0, None
-            if abs(e) <= self.m.suspect_frac * thr:
-                self.scale["ins_doppler"].push(pend[0], e / self._ins_doppler_sigma())
+        self.insdop_ex.update(pend[0], abs(e) > thr)
+        if abs(e) <= self.m.suspect_frac * thr:
+            self.scale["ins_doppler"].push(pend[0], e / self._ins_doppler_sigma())
 
     def _ins_doppler_sigma(self) -> float:
         return math.sqrt(self.m.ins_doppler_sigma_mps ** 2 + self.ins_doppler.last_var_mps2)
@@ -371,30 +401,36 @@ class HypothesisLogic:
     def _ins_doppler_verdict(self, t: int) -> Optional[Verdict]:
         """The INS's velocity change against the Doppler's: a failure
         implicates the INS and the GNSS (its velocity); a clear pass rules out
-        the INS. Sizes in the baro/INS check's metres, so the two INS tests
-        weigh each other: an accelerometer error ``e / W`` makes a second
-        difference of ``(e / W) D^2 / 2`` over that check's two windows
-        (``D = 2 ins_window_s``)."""
+        the INS. Sizes: for the INS, in the baro/INS check's metres, so the two
+        INS tests weigh each other (an accelerometer error ``e / W`` makes a
+        second difference of ``(e / W) D^2 / 2`` over that check's span ``D``,
+        taken at its shortest, ``ins_window_s``, so that a pass of the coarser
+        check cannot overrule this one's failure); for the GNSS, the position a
+        velocity error ``e`` makes over half the window."""
         d = self.ins_doppler
-        if (not self.f.ins_doppler_check or "gnss" in self.excluded or self._warm("gnss", t)
+        # the INS already out for this: its failures are explained (readmission watches them)
+        ins_out = "baro_ins" in self.excluded and self.ins_excluded
+        if (not self.f.ins_doppler_check or "gnss" in self.excluded or ins_out or self._warm("gnss", t)
                 or d.last_us is None or t - d.last_us > self.stale_us[GNSS] or d.last_e_mps != d.last_e_mps):
             return None
         thr = self._ins_doppler_thr()
         e = d.last_e_mps
-        D = 2.0 * self.m.ins_window_s
-        to_m = 0.5 * D * D / self.m.doppler_window_s
+        W = self.m.doppler_window_s
+        D = self.m.ins_window_s  # its shortest span: the mapping never favours the coarser test
+        to_ins_m = 0.5 * D * D / W
+        to_pos_m = 0.5 * W  # a GNSS velocity error e over the window: e W / 2 of position
         txt = (f"INS velocity changed {-e:+.2f} m/s against the GNSS Doppler over "
                f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m/s)")
         implicates = frozenset(("ins", "gnss"))
         if abs(e) > thr:
-            if self.insdop_over >= 2 and t - self.insdop_since >= self.persist_us:
+            if self.insdop_ex.persistent(t, self.persist_us):
                 return Verdict("INS/Doppler", "fail", implicates, stat=abs(e), threshold=thr, text=txt,
-                               scale_m=abs(e) * to_m)
+                               scale_m=abs(e) * to_pos_m, sizes={"ins": abs(e) * to_ins_m})
             return Verdict("INS/Doppler", "suspect", implicates, stat=abs(e), threshold=thr, text=txt)
         if abs(e) > self.m.suspect_frac * thr:
             return Verdict("INS/Doppler", "suspect", implicates, stat=abs(e), threshold=thr, text=txt)
         clear = frozenset(("ins",)) if abs(e) < self.m.clear_frac * thr else frozenset()
-        return Verdict("INS/Doppler", "pass", implicates, clear, abs(e), thr, scale_m=thr * to_m)
+        return Verdict("INS/Doppler", "pass", implicates, clear, abs(e), thr, scale_m=thr * to_ins_m)
 
     def _anchor(self) -> int:
         best, best_var = BARO, math.inf
@@ -472,11 +508,13 @@ class HypothesisLogic:
         h = self._h(name)
         rej = self.rejections[name].rejected
         # with the baro in the channel, the INS between aux samples is held by the
-        # baro rows (an INS fault shows there first, in the baro/INS test)
-        # the channel's prediction rests on the baro and on the INS between its
-        # samples: an accelerometer fault drifts its innovations too (it had pinned
-        # INS faults on the GNSS once the INS/Doppler test implicated INS or GNSS)
-        implicates = frozenset((name, "baro", "ins")) if self.bank.baro_on[c] else frozenset((name, "ins"))
+        # baro rows, unless an INS test doubts the INS: a strong accelerometer
+        # fault drifts the channel's innovations too (without this, the
+        # INS/Doppler test's failures pinned INS faults on the GNSS)
+        if self.bank.baro_on[c]:
+            implicates = frozenset((name, "baro", "ins")) if self.ins_doubt else frozenset((name, "baro"))
+        else:
+            implicates = frozenset((name, "ins"))
         label = LABEL[name]
         sudden = self.sudden.get(name)
         if sudden is not None and t - sudden[0] > self.rejections[name].length_us:
@@ -766,9 +804,13 @@ class HypothesisLogic:
         self.envelope_failing = envelope is not None  # also holds back the rangefinder's readmission
         if "rangefinder" in self.excluded:
             envelope = None
+        ins_tests = (self._ins_verdict(t), self._ins_doppler_verdict(t))
+        # an INS test that is not passing puts the INS among what an aux channel's
+        # innovations can mean (the channel runs on it between its samples)
+        self.ins_doubt = any(v is not None and v.level != "pass" for v in ins_tests)
         aux = (self._aux_verdict(GNSS, "gnss", t), self._aux_verdict(RNG, "rangefinder", t))
-        verdicts = [v for v in (*aux, self._ins_verdict(t), self._raw_verdict(), envelope,
-                                self._doppler_verdict(t), self._ins_doppler_verdict(t))
+        verdicts = [v for v in (*aux, *ins_tests, self._raw_verdict(), envelope, self._doppler_verdict(t),
+                                self._baro_doppler_verdict(t))
                     if v is not None] + self._level_verdicts(t)
         if self.f.kink_isolation:
             verdicts += self._kink_verdicts(t, aux)
@@ -871,6 +913,8 @@ class HypothesisLogic:
         if name in j.sources:
             if j.situation == "isolated":
                 if t - (self.isolated_since or t) >= self.persist_us:
+                    if name == "baro_ins":
+                        self.ins_excluded = "ins" in j.candidates
                     return self._exclude(name, t, j.reason)
                 return tr.set("caution", t, j.reason)
             return tr.set(j.state, t, j.reason)
@@ -882,6 +926,12 @@ class HypothesisLogic:
         if name == "baro_ins":
             # a faulty baro is taken out of every aux channel, not only the fusion
             self.bank.baro_on[GNSS] = self.bank.baro_on[RNG] = False
+            # what the aux channels' sequential tests summed while their channel
+            # rested on this source is its doing, not their sensors' (it had pinned
+            # a baro ramp, then an INS fault, on the GNSS after the baro+INS source
+            # was out); with the INS at fault they stay frozen until it is back
+            for _, aux_name in AUX:
+                self.cusum[aux_name].clear()
         else:
             self.cusum[name].clear()
             self.rejections[name].clear()
@@ -924,7 +974,7 @@ class HypothesisLogic:
         # hysteresis: back only inside clear_frac of the threshold that excludes (a
         # GNSS 5 m off with a 1 m accuracy was readmitted at 4.4 sigma, into the output)
         ok = (abs(z - h) <= self.m.clear_frac * self.k_cmp * math.hypot(sigma, s)
-              and not (c == RNG and self.envelope_failing) and not (c == GNSS and self.doppler_over > 0))
+              and not (c == RNG and self.envelope_failing) and not (c == GNSS and self.doppler_ex.count > 0))
         if not self._consistent_for(name, t, ok):
             return None
         self.excluded.discard(name)
@@ -938,9 +988,11 @@ class HypothesisLogic:
         bank = self.bank
         rej = self.rejections["baro_ins"].rejected
         v = self._ins_verdict_quiet(t)
-        # and not while the INS still disagrees with the GNSS Doppler (the INS is
-        # half of this source: an accelerometer fault must end before it is back)
-        ok = v and rej == 0 and self.last_baro_m is not None and self.insdop_over == 0
+        # and not while the INS, or the baro, still disagrees with the GNSS Doppler
+        # (an accelerometer fault must end before the source is back, and a baro
+        # ramp, which the second difference cannot see, too)
+        ok = (v and rej == 0 and self.last_baro_m is not None and self.insdop_ex.count == 0
+              and self.baro_doppler_ex.count == 0)
         if ok:
             for c, name in AUX:
                 if name in self.excluded or not self._available(t)[c]:
@@ -956,9 +1008,13 @@ class HypothesisLogic:
         bank.baro_on[:] = True  # differencing restarts in the aux channels
         # the aux channels' sequential tests summed innovations their channel made
         # while it rested on the faulty source: that evidence is spent
-        for _, name in AUX:
+        for c, name in AUX:
             self.cusum[name].clear()
             self.rejections[name].clear()
+            if self.ins_excluded and name not in self.excluded and self.last_seen_us[c] is not None:
+                # and a channel that ran on the faulty INS starts again
+                self._reinit_aux(c, name, t, math.sqrt(self.sensor_var_floor[c]))
+        self.ins_excluded = False
         return self.trackers["baro_ins"].set("nominal", t, f"readmitted after {self.m.readmit_s:g} s consistent")
 
     def _ins_residual(self) -> Optional[tuple]:

@@ -70,10 +70,13 @@ def judge(verdicts: list[Verdict], live: frozenset = frozenset(HYPOTHESES)) -> J
     (an excluded source cannot be the cause of a new failure)."""
     failed = [v for v in verdicts if v.level == "fail"]
     # a pass rules a hypothesis out only if it would have seen a fault as large
-    # as the largest discrepancy the failures show
-    size_m = max((v.scale_m for v in failed), default=0.0)
-    cleared = frozenset().union(*(v.exonerates for v in verdicts
-                                  if v.level == "pass" and (not failed or v.scale_m <= size_m)))
+    # as the largest discrepancy the failures show, as that hypothesis would make it
+    passes = [v for v in verdicts if v.level == "pass"]
+    if failed:
+        size_m = {h: max(f.size_for(h) for f in failed) for v in passes for h in v.exonerates}
+        cleared = frozenset(h for v in passes for h in v.exonerates if v.scale_m <= size_m[h])
+    else:
+        cleared = frozenset().union(*(v.exonerates for v in passes))
     if failed:
         cand = frozenset(live)
         for v in failed:

@@ -14,7 +14,7 @@ The report has three sensor sources: ``baro`` and ``ins`` are both
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, Optional
 
 HYPOTHESES = ("gnss", "rangefinder", "baro", "ins")
 REPORT_SOURCE = {"gnss": "gnss", "rangefinder": "rangefinder", "baro": "baro_ins", "ins": "baro_ins"}
@@ -38,10 +38,20 @@ class Verdict:
     # a pass fail (its threshold less its statistic); a pass rules out only
     # faults it could have seen
     scale_m: float = 0.0
+    # a failure's discrepancy as each hypothesis would make it, where that
+    # differs from scale_m (one velocity error is metres of position for the
+    # GNSS and fewer metres of a second difference for the INS's own test)
+    sizes: Optional[dict] = None
 
     @property
     def failed(self) -> bool:
         return self.level == "fail"
+
+    def size_for(self, hyp: str) -> float:
+        """The discrepancy this failure shows, as ``hyp`` would make it (m)."""
+        if self.sizes is not None and hyp in self.sizes:
+            return self.sizes[hyp]
+        return self.scale_m
 
 
 def live_hypotheses(excluded) -> frozenset:
