@@ -51,8 +51,11 @@ class AttitudeInterpolator:
     def resolve(self, now_us: Optional[int], flush: bool = False) -> List[Tuple[object, Optional[Quat], bool]]:
         """Pop resolvable pending items: ``(item, quat or None, used_nearest)``."""
         pend = self.pending
-        if pend and not flush and now_us is not None and self._awaits_next(pend[0][0], now_us):
-            return []  # fast path: still waiting for the next attitude
+        ts = self._t
+        if pend and not flush and ts and now_us is not None:  # inline, the hot path
+            t = pend[0][0]
+            if t > ts[-1] and now_us < t + self.wait_us:
+                return []  # fast path: still waiting for the next attitude
         out = []
         while pend:
             t, item = pend[0]
@@ -71,11 +74,6 @@ class AttitudeInterpolator:
                 self.nearest += 1
                 out.append((item, near, True))
         return out
-
-    def _awaits_next(self, t: int, now_us: int) -> bool:
-        """Whether an item at ``t`` is past the last attitude and still within its wait."""
-        ts = self._t
-        return bool(ts) and t > ts[-1] and now_us < t + self.wait_us
 
     def _bracketed(self, t: int) -> Optional[Quat]:
         """The attitude at ``t`` from the two attitudes around it (one at ``t``

@@ -152,7 +152,8 @@ class TlogReader:
                 st == UNKNOWN_ID and in_step and not _good_record_after(buf, pos, n, last_ts, p + flen + 8)
             ):
                 ts = int.from_bytes(buf[pos:p], "big")
-                if _plausible(ts, last_ts):
+                # _plausible(ts, last_ts), inline: the hot path
+                if abs(ts - last_ts) <= _TS_JUMP_US if last_ts is not None else _TS_MIN_US <= ts <= _TS_MAX_US:
                     if bad_from >= 0:
                         yield self._garbage_ends(ts, base + pos - bad_from)
                         bad_from = -1
