@@ -91,7 +91,8 @@ from __future__ import annotations
 import bisect
 import math
 from collections import deque
-from typing import Deque, List, Optional
+from dataclasses import dataclass
+from typing import Callable, Deque, List, NamedTuple, Optional
 
 from ..atmosphere import height_from_pressure_m, pressure_at_height_pa
 from ..config import IngestConfig
@@ -163,6 +164,145 @@ WANTED = frozenset(
 )
 
 
+class ImuItem(NamedTuple):
+    """An IMU sample on the vehicle clock, before its attitude is known."""
+
+    t_us: int
+    recv_s: float
+    boot: int
+    fb: tuple  # specific force, body FRD, m/s^2
+    name: str  # the message it came in
+
+
+class BaroItem(NamedTuple):
+    """A static pressure on the vehicle clock, before the baro reference is known."""
+
+    t_us: int
+    recv_s: float
+    boot: int
+    p_pa: float
+
+
+class GnssItem(NamedTuple):
+    """A GNSS altitude on the vehicle clock, before the GNSS reference is known."""
+
+    t_us: int
+    recv_s: float
+    boot: int
+    alt_m: float  # MSL or above the ellipsoid (ingest.gnss_altitude)
+    sigma_m: Optional[float]
+    fix: int
+    sats: int
+
+
+class RangeItem(NamedTuple):
+    """A rangefinder message on the vehicle clock, before its checks."""
+
+    t_us: int
+    recv_s: float
+    boot: int
+    name: str  # DISTANCE_SENSOR or RANGEFINDER
+    f: dict  # its fields
+
+
+class AutopilotItem(NamedTuple):
+    """The autopilot's own height on the vehicle clock, before its datum is decided."""
+
+    t_us: int
+    recv_s: float
+    boot: int
+    alt_msl: Optional[float]  # GLOBAL_POSITION_INT alt (None without a position; LOCAL_POSITION_NED: None)
+    local_up: float  # above its home (relative_alt) or its EKF origin (-z)
+    vel_up: float
+
+
+class _Candidate(NamedTuple):
+    """A message on a new vehicle time base not yet confirmed: its handler ``fn`` runs on ``f`` once adopted."""
+
+    t_us: int
+    recv_s: float
+    fn: Callable
+    f: object
+
+
+class _UsecKey(NamedTuple):
+    """A follower's key for a ``time_usec`` stream (see :meth:`Normaliser._usec_stream`)."""
+
+    key: tuple  # its StreamClocks key
+    what: str  # its name in messages
+
+
+class _Follower(NamedTuple):
+    """A message that waits for the verdict on a new time base: ``key`` None
+    (untimed), a :class:`_UsecKey` (a time_usec stream) or a StreamClocks
+    key, with its raw time."""
+
+    key: Optional[tuple]
+    t_raw: Optional[int]
+    recv_s: float
+    fn: Callable
+    f: object
+
+
+class _Anchor(NamedTuple):
+    """The autopilot's reference point: where its origin is (``home``,
+    ``autopilot_home``, ``ekf_origin``), its altitude MSL, and the stream
+    of heights above it."""
+
+    origin: str
+    alt_msl_m: float
+    rel_kind: str  # GLOBAL_POSITION_INT or LOCAL_POSITION_NED
+
+
+class _HomePosition(NamedTuple):
+    """The first HOME_POSITION: when (vehicle clock, boot) and its altitude MSL."""
+
+    t_us: int
+    boot: int
+    alt_msl_m: float
+
+
+class _RelHeight(NamedTuple):
+    """The autopilot's height above its reference point at a vehicle time, and its vertical speed."""
+
+    t_us: int
+    height_m: float
+    vel_up_mps: float
+
+
+class _RangeReading(NamedTuple):
+    """The latest reading of one rangefinder message, for the cross-check."""
+
+    recv_s: float
+    range_m: float
+
+
+class _Heartbeat(NamedTuple):
+    type: int  # MAV_TYPE
+    autopilot: int  # MAV_AUTOPILOT
+
+
+@dataclass
+class _OtherSystem:
+    """Another system heard on the link: its frames, its heartbeat ``(type, autopilot)`` if one came, said yet."""
+
+    frames: int = 0
+    heartbeat: Optional[_Heartbeat] = None
+    said: bool = False
+
+
+@dataclass
+class _RangeRun:
+    """One raw rangefinder value repeated since ``t_start_us`` (boot ``boot``),
+    with the lowest and highest pressure seen meanwhile (the stuck test)."""
+
+    raw: object
+    t_start_us: int
+    p_min: Optional[float]
+    p_max: Optional[float]
+    boot: int
+
+
 def _finite(*vals) -> bool:
     for v in vals:
         if not math.isfinite(v):
@@ -180,7 +320,7 @@ class Normaliser:
         self.link_name = link_name
         self._asked = sysid is not None
         self._not_applicable: Optional[str] = None  # why height integrity does not apply (vehicle_class)
-        self._others: dict = {}  # other systems heard: sysid -> [frames, description or None, said]
+        self._others: dict[int, _OtherSystem] = {}  # other systems heard, by sysid
         self._wait_hb_t0: Optional[float] = None  # receive time of the first tick (live)
         self._wait_hb_next: Optional[float] = None
         self.ap_compid = MAV_COMP_ID_AUTOPILOT1
@@ -201,31 +341,31 @@ class Normaliser:
         self.gnss_ref = ReferenceResolver(
             "gnss", cfg.gnss_reference, _item_t, _mean_alt, self._gnss_anchored
         )
-        self._anchor: Optional[tuple] = None  # (origin, alt_msl_m, height kind): the autopilot's reference point
-        self._home_pos: Optional[tuple] = None  # (t_us, boot, alt_msl_m) of the first HOME_POSITION
+        self._anchor: Optional[_Anchor] = None  # the autopilot's reference point
+        self._home_pos: Optional[_HomePosition] = None  # the first HOME_POSITION
         # the reference point as it moves with the autopilot's home (alt MSL), and what moved it last
         self._point_msl: Optional[float] = None
         self._home_last: dict = {}  # origin ("home", "autopilot_home") -> the last home altitude it gave
         self._gpi_home_cands: List[float] = []  # a moved GLOBAL_POSITION_INT home, not yet confirmed
         # the autopilot's height above its home / EKF origin, this boot, while the baro reference is open
-        self._rel_hist = {"GLOBAL_POSITION_INT": [], "LOCAL_POSITION_NED": []}  # [(t_us, height_m, vel_up_mps)]
+        self._rel_hist: dict[str, List[_RelHeight]] = {"GLOBAL_POSITION_INT": [], "LOCAL_POSITION_NED": []}
         self._wait_said: set = set()
         self._imu_out = False  # an IMU sample of this boot went out
         self._pre_imu: List[object] = []  # measurements waiting for it
-        self._cands: List[tuple] = []  # (t_us, recv_s, fn, f): a new vehicle time base, unconfirmed
-        self._followers: List[tuple] = []
+        self._cands: List[_Candidate] = []  # a new vehicle time base, unconfirmed
+        self._followers: List[_Follower] = []
         self._last_recv: Optional[float] = None
         self._link_lost = False
         self._geoid_sep_m: Optional[float] = None
         self._ekf_origin_msl_m: Optional[float] = None
-        self._ap_held: Deque[tuple] = deque()
+        self._ap_held: Deque[AutopilotItem] = deque()
         self._ap_mode: Optional[str] = None
         self._gnss_wait_us = int(cfg.gnss_reference.home_wait_s * 1e6)
         self._cos_max_tilt = math.cos(math.radians(cfg.rangefinder_max_tilt_deg))
         self._stuck_us = int(cfg.rangefinder_stuck_s * 1e6)
-        self._run: Optional[list] = None  # [raw_value, t_start, p_min, p_max, boot]
-        # the latest reading of each rangefinder message, for the cross-check: name -> (recv_s, m)
-        self._range_last: dict[str, tuple[float, float]] = {}
+        self._run: Optional[_RangeRun] = None
+        # the latest reading of each rangefinder message, for the cross-check, by message name
+        self._range_last: dict[str, _RangeReading] = {}
         self._last_pressure_pa: Optional[float] = None
         self._pressure_id = PRESSURE_IDS[cfg.baro_instance]
         self._decoders = {mid: wire.make_decoder(mid) for mid in WANTED}
@@ -356,27 +496,28 @@ class Normaliser:
         """A frame from a system that is not (or not yet) the vehicle: remembered, and said once."""
         o = self._others.get(sysid)
         if o is None:
-            o = self._others[sysid] = [0, None, False]
-        o[0] += 1
-        if msgid == HEARTBEAT and o[1] is None:
+            o = self._others[sysid] = _OtherSystem()
+        o.frames += 1
+        if msgid == HEARTBEAT and o.heartbeat is None:
             try:
                 hb = self._decoders[HEARTBEAT](payload)
-                o[1] = (hb["type"], hb["autopilot"])
+                o.heartbeat = _Heartbeat(hb["type"], hb["autopilot"])
             except Exception:
                 pass
-        if self.autopilot is not None and not o[2] and (o[1] is not None or o[0] >= OTHER_FRAMES_BEFORE_SAYING):
+        if self.autopilot is not None and not o.said and (
+                o.heartbeat is not None or o.frames >= OTHER_FRAMES_BEFORE_SAYING):
             self._say_ignored(recv_s, sysid)
 
     def _say_ignored(self, recv_s, sysid, final: bool = False) -> None:
         o = self._others[sysid]
-        if o[2] or (o[1] is None and not final and o[0] < OTHER_FRAMES_BEFORE_SAYING):
+        if o.said or (o.heartbeat is None and not final and o.frames < OTHER_FRAMES_BEFORE_SAYING):
             return
-        o[2] = True
-        if o[1] is None:
+        o.said = True
+        if o.heartbeat is None:
             what, hint = "no heartbeat heard", f"; --sysid {sysid} to monitor it instead"
         else:
-            what = describe_system(*o[1])
-            hint = "" if o[1][0] == MAV_TYPE_GCS or o[1][1] == MAV_AUTOPILOT_INVALID else \
+            what = describe_system(*o.heartbeat)
+            hint = "" if o.heartbeat.type == MAV_TYPE_GCS or o.heartbeat.autopilot == MAV_AUTOPILOT_INVALID else \
                 f"; --sysid {sysid} to monitor it instead"
         self._emit(Notice(recv_s, "ignored", f"ignoring system {sysid} ({what}): not the monitored vehicle "
                                              f"(system {self.sysid}){hint}"))
@@ -389,7 +530,7 @@ class Normaliser:
         if now_s < self._wait_hb_next:
             return
         self._wait_hb_next = now_s + WAIT_HEARTBEAT_REPEAT_S
-        heard = [f"system {sid} ({describe_system(*o[1]) if o[1] else 'no heartbeat'})"
+        heard = [f"system {sid} ({describe_system(*o.heartbeat) if o.heartbeat else 'no heartbeat'})"
                  for sid, o in sorted(self._others.items())]
         what = f"a heartbeat from system {self.sysid}" if self._asked else "an autopilot heartbeat"
         since = f"{now_s - self._wait_hb_t0:.0f} s"
@@ -427,21 +568,21 @@ class Normaliser:
         cands = self._cands
         if cands:
             last = clock.last_t_us
-            ct0, ct1 = cands[0][0], cands[-1][0]
+            ct0, ct1 = cands[0].t_us, cands[-1].t_us
             if ct0 < last:  # behind: refuted by a leap from the candidates back to the old time base
                 back_to_old = t_us >= last - BEHIND_US and t_us - ct1 > BEHIND_US
                 goes_on = not back_to_old and t_us >= ct1 - BEHIND_US
             else:  # ahead: refuted by a time back near the old one
                 goes_on = t_us >= ct1 - BEHIND_US
             if goes_on:
-                cands.append((t_us, recv_s, fn, f))
+                cands.append(_Candidate(t_us, recv_s, fn, f))
                 caught_up = ct0 < last and t_us >= last - BEHIND_US
                 if len(cands) >= CONFIRM_N and (t_us - ct0 >= CONFIRM_SPAN_US or caught_up):
                     self._adopt_candidates()
                 return
             self._refute_candidates(f"then {t_us} us")
         if clock.classify(t_us, recv_s, BEHIND_US) == HOLD:
-            self._cands = [(t_us, recv_s, fn, f)]
+            self._cands = [_Candidate(t_us, recv_s, fn, f)]
             return
         clock.accept(t_us, recv_s)
         fn(f, t_us, recv_s)
@@ -451,14 +592,14 @@ class Normaliser:
     def _adopt_candidates(self) -> None:
         cands, self._cands = self._cands, []
         clock = self.clock
-        t0, recv0 = cands[0][0], cands[0][1]
+        t0, recv0 = cands[0].t_us, cands[0].recv_s
         last = clock.last_t_us
         if t0 < last - clock.jump_us:
             self._reboot(t0, recv0)
         elif t0 < last:
             step = last - t0 + CLOCK_STEP_GAP_US  # the first new time just after the last old one
             clock.step_us += step
-            cands = [(t + step, r, fn, f) for t, r, fn, f in cands]
+            cands = [c._replace(t_us=c.t_us + step) for c in cands]
             self.streams.reset()  # the other clocks are placed on it again
             self.stats.clock_steps += 1
             self._emit(Notice(recv0, "clock_step",
@@ -466,9 +607,9 @@ class Normaliser:
                               f"(boot {clock.boot}): later times moved on by {step * 1e-6:.2f} s to keep one timeline"))
         else:
             clock.jump_to(t0, recv0)
-        for t, r, fn, f in cands:
-            clock.accept(t, r)
-            fn(f, t, r)
+        for c in cands:
+            clock.accept(c.t_us, c.recv_s)
+            c.fn(c.f, c.t_us, c.recv_s)
         self._release_followers(cands)
         if self.att.pending:
             self._resolve_attitude()
@@ -476,11 +617,13 @@ class Normaliser:
     def _refute_candidates(self, why: str) -> None:
         cands, self._cands = self._cands, []
         last = self.clock.last_t_us
-        for t, r, _fn, _f in cands:
+        for c in cands:
+            t = c.t_us
             if last is not None and t < last:
-                self._reject(r, "stale", f"vehicle time {t} us against {last} us, {why}: an isolated old packet", t)
+                self._reject(c.recv_s, "stale", f"vehicle time {t} us against {last} us, {why}: an isolated old packet",
+                             t)
             else:
-                self._reject(r, "time_jump", f"vehicle time {t} us against {last} us, {why}", t)
+                self._reject(c.recv_s, "time_jump", f"vehicle time {t} us against {last} us, {why}", t)
         self._release_followers()
 
     def _stream_time(self, key, t_raw: int, recv_s: float, fn, f, est: Optional[int] = None) -> None:
@@ -489,7 +632,7 @@ class Normaliser:
         While a new time base is unconfirmed these wait for its verdict, so that
         the samples right after a reboot land in the new boot."""
         if self._cands:
-            self._followers.append((key, t_raw, recv_s, fn, f))
+            self._followers.append(_Follower(key, t_raw, recv_s, fn, f))
             return
         if est is None:
             est = self.clock.estimate(recv_s)
@@ -501,7 +644,7 @@ class Normaliser:
     def _untimed(self, recv_s: float, fn, f, what: str) -> None:
         """A message without a time of its own: placed on the vehicle clock by receive time."""
         if self._cands:
-            self._followers.append((None, None, recv_s, fn, f))
+            self._followers.append(_Follower(None, None, recv_s, fn, f))
             return
         t_us = self.clock.estimate(recv_s)
         if t_us is None:
@@ -520,8 +663,8 @@ class Normaliser:
                     self._untimed(recv_s, fn, f, "untimed message")
                 else:
                     fn(f, est, recv_s)
-            elif key[0] == "usec":
-                self._usec_stream(key[1], t_raw, recv_s, key[2], fn, f, est)
+            elif type(key) is _UsecKey:
+                self._usec_stream(key.key, t_raw, recv_s, key.what, fn, f, est)
             else:
                 self._stream_time(key, t_raw, recv_s, fn, f, est)
 
@@ -572,7 +715,7 @@ class Normaliser:
         Unix and missing times are placed by the vehicle clock: while a new time base is
         unconfirmed they wait, and are placed on the one that holds."""
         if self._cands and (t_usec == 0 or t_usec >= UNIX_THRESHOLD_US):
-            self._followers.append((("usec", key, what), t_usec, recv_s, fn, f))
+            self._followers.append(_Follower(_UsecKey(key, what), t_usec, recv_s, fn, f))
             return
         t = self._usec(t_usec, recv_s, what)
         if t is not None:
@@ -646,15 +789,15 @@ class Normaliser:
 
     def _imu_at(self, payload, t_us, recv_s) -> None:
         fb, name = payload
-        item = (t_us, recv_s, self.clock.boot, fb, name)
+        item = ImuItem(t_us, recv_s, self.clock.boot, fb, name)
         for it in self.imu_sel.offer(name, item):
             self._imu_selected(it)
 
-    def _imu_selected(self, item) -> None:
+    def _imu_selected(self, item: ImuItem) -> None:
         self.stats.imu_source = self.imu_sel.chosen
-        if not self._admit("imu", item[0], item[1], item[2]):
+        if not self._admit("imu", item.t_us, item.recv_s, item.boot):
             return
-        self.att.pending.append((item[0], item))
+        self.att.pending.append((item.t_us, item))
         self._resolve_attitude()
 
     def _resolve_attitude(self, flush: bool = False) -> None:
@@ -682,9 +825,9 @@ class Normaliser:
         self._last_pressure_pa = p_pa
         run = self._run
         if run is not None:
-            run[2] = p_pa if run[2] is None else min(run[2], p_pa)
-            run[3] = p_pa if run[3] is None else max(run[3], p_pa)
-        item = (t_us, recv_s, self.clock.boot, p_pa)
+            run.p_min = p_pa if run.p_min is None else min(run.p_min, p_pa)
+            run.p_max = p_pa if run.p_max is None else max(run.p_max, p_pa)
+        item = BaroItem(t_us, recv_s, self.clock.boot, p_pa)
         origin, items = self.baro_ref.push(item)
         self._baro_released(origin, items)
         if self.baro_ref.value is None:
@@ -696,12 +839,12 @@ class Normaliser:
         a = self._anchor
         if a is None or not held:
             return None
-        origin, _alt, rel_kind = a
+        origin, rel_kind = a.origin, a.rel_kind
         win = min(self.baro_ref.window_us, ANCHOR_WINDOW_US)
         vals = []
-        t0 = None
+        t0 = b0 = None
         complete = final
-        for t_us, _r, boot, p in held:
+        for t_us, _r, boot, p in held:  # BaroItem
             if t0 is not None and (t_us - t0 >= win or boot != b0):
                 complete = True
                 break
@@ -723,18 +866,18 @@ class Normaliser:
     def _baro_at_home(self, held, final) -> Optional[float]:
         """Only once no height above home came for ``startup_window_s`` after HOME_POSITION
         (a link without GLOBAL_POSITION_INT): the pressure around it."""
-        th, bh, _ = self._home_pos
+        th, bh = self._home_pos.t_us, self._home_pos.boot
         w = self.baro_ref.window_us
-        after = [it for it in held if (it[2] == bh and it[0] > th) or it[2] > bh]
-        if not final and (not after or after[-1][2] == bh and after[-1][0] - th < w):
+        after = [it for it in held if (it.boot == bh and it.t_us > th) or it.boot > bh]
+        if not final and (not after or after[-1].boot == bh and after[-1].t_us - th < w):
             return None  # a GLOBAL_POSITION_INT may still come
-        before = [it for it in held if it[2] == bh and th - w <= it[0] <= th]
+        before = [it for it in held if it.boot == bh and th - w <= it.t_us <= th]
         if before:
             return _mean_pressure(before)
         if not after:
             return None
-        t0 = after[0][0]
-        return _mean_pressure([it for it in after if it[0] - t0 <= w and it[2] == after[0][2]])
+        t0 = after[0].t_us
+        return _mean_pressure([it for it in after if it.t_us - t0 <= w and it.boot == after[0].boot])
 
     def _rel_at(self, t_us: int, boot: int, kind: str) -> Optional[float]:
         """The autopilot's height above its reference point at ``t_us`` (None: none within 1 s)."""
@@ -745,12 +888,12 @@ class Normaliser:
         best = None
         for j in (i - 1, i):
             if 0 <= j < len(hist):
-                d = abs(hist[j][0] - t_us)
+                d = abs(hist[j].t_us - t_us)
                 if d <= REL_ALT_MAX_AGE_US and (best is None or d < best[0]):
                     best = (d, hist[j])
         if best is None:
             return None
-        tr, rel_m, vel_up = best[1]
+        tr, rel_m, vel_up = best[1]  # _RelHeight
         return rel_m + vel_up * (t_us - tr) * 1e-6 if _finite(vel_up) else rel_m
 
     def _note_rel(self, kind: str, t_us: int, rel_m: float, vel_up: float) -> None:
@@ -759,13 +902,13 @@ class Normaliser:
         hist = self._rel_hist[kind]
         if len(hist) >= REL_HIST_MAX:
             del hist[: REL_HIST_MAX // 2]
-        bisect.insort(hist, (t_us, rel_m, vel_up))
+        bisect.insort(hist, _RelHeight(t_us, rel_m, vel_up))
 
     def _set_anchor(self, origin: str, alt_msl_m: float, rel_kind: str) -> None:
         """The autopilot's reference point is known: fix what waits for it (first one wins)."""
         if self._anchor is not None:
             return
-        self._anchor = (origin, alt_msl_m, rel_kind)
+        self._anchor = _Anchor(origin, alt_msl_m, rel_kind)
         self._point_msl = alt_msl_m
         self._retry_references()
 
@@ -786,7 +929,7 @@ class Normaliser:
         t_us = self.clock.last_t_us if self.clock.last_t_us is not None else 0
         self.stats.reference_moves += 1
         self._emit(ReferenceMoved(t_us=t_us, recv_s=self._last_recv or 0.0, boot=self.clock.boot,
-                                  alt_ref_msl_m=alt_msl_m, shift_m=shift, offset_m=alt_msl_m - self._anchor[1],
+                                  alt_ref_msl_m=alt_msl_m, shift_m=shift, offset_m=alt_msl_m - self._anchor.alt_msl_m,
                                   origin=origin))
 
     def _gpi_home(self, home_msl_m: float) -> None:
@@ -828,7 +971,7 @@ class Normaliser:
         p_ref = self.baro_ref.value
         if origin is not None:
             first = items[0] if items else None
-            alt = self._anchor[1] if origin in ANCHORED and self._anchor is not None else None
+            alt = self._anchor.alt_msl_m if origin in ANCHORED and self._anchor is not None else None
             self._reference_event("baro", p_ref, alt, origin, first)
         inst = self.cfg.baro_instance
         for t_us, recv_s, boot, p_pa in items:
@@ -861,7 +1004,7 @@ class Normaliser:
 
     def _gnss_at(self, payload, t_us, recv_s) -> None:
         alt_m, sigma_m, fix, sats = payload
-        item = (t_us, recv_s, self.clock.boot, alt_m, sigma_m, fix, sats)
+        item = GnssItem(t_us, recv_s, self.clock.boot, alt_m, sigma_m, fix, sats)
         origin, items = self.gnss_ref.push(item)
         self._gnss_released(origin, items)
         if self.gnss_ref.value is None:
@@ -871,7 +1014,7 @@ class Normaliser:
         a = self._anchor
         if a is None:
             return None
-        origin, alt_msl, _ = a
+        origin, alt_msl = a.origin, a.alt_msl_m
         if self.cfg.gnss_altitude == "msl":
             return alt_msl, origin
         if self._geoid_sep_m is None:
@@ -901,7 +1044,7 @@ class Normaliser:
             return
         if self._home_pos is None:
             t_us = self.clock.last_t_us if self.clock.last_t_us is not None else 0
-            self._home_pos = (t_us, self.clock.boot, alt_m)
+            self._home_pos = _HomePosition(t_us, self.clock.boot, alt_m)
         if self._anchor is None:
             self._home_last["home"] = alt_m
             self._set_anchor("home", alt_m, "GLOBAL_POSITION_INT")
@@ -910,7 +1053,7 @@ class Normaliser:
 
     def _reference_event(self, kind, value, alt_msl, origin, item) -> None:
         if item:
-            t_us, recv_s, boot = item[0], item[1], item[2]
+            t_us, recv_s, boot = item.t_us, item.recv_s, item.boot
         else:  # fixed before any sample needed it (from the autopilot's home)
             t_us = self.clock.last_t_us if self.clock.last_t_us is not None else 0
             recv_s, boot = (self._last_recv or 0.0), self.clock.boot
@@ -925,22 +1068,22 @@ class Normaliser:
             return
         self._note(self.range_sel, "DISTANCE_SENSOR", self._range_selected)
         if f["signal_quality"] != DISTANCE_SENSOR_QUALITY_INVALID:
-            self._range_last["DISTANCE_SENSOR"] = (recv_s, f["current_distance"] / 100.0)
+            self._range_last["DISTANCE_SENSOR"] = _RangeReading(recv_s, f["current_distance"] / 100.0)
         self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._distance_sensor_at, f)
 
     def _distance_sensor_at(self, f, t_us, recv_s) -> None:
-        item = (t_us, recv_s, self.clock.boot, "DISTANCE_SENSOR", f)
+        item = RangeItem(t_us, recv_s, self.clock.boot, "DISTANCE_SENSOR", f)
         for it in self.range_sel.offer("DISTANCE_SENSOR", item):
             self._range_selected(it)
 
     def _rangefinder(self, f, recv_s, compid) -> None:
         if _finite(f["distance"]):
-            self._range_last["RANGEFINDER"] = (recv_s, f["distance"])
+            self._range_last["RANGEFINDER"] = _RangeReading(recv_s, f["distance"])
         self._untimed(recv_s, self._rangefinder_at, f, "RANGEFINDER")  # no time field: see clock.py
 
     def _rangefinder_at(self, f, t_us, recv_s) -> None:
         self._note(self.range_sel, "RANGEFINDER", self._range_selected)
-        item = (t_us, recv_s, self.clock.boot, "RANGEFINDER", f)
+        item = RangeItem(t_us, recv_s, self.clock.boot, "RANGEFINDER", f)
         for it in self.range_sel.offer("RANGEFINDER", item):
             self._range_selected(it)
 
@@ -970,11 +1113,11 @@ class Normaliser:
                          value_m=range_m, min_m=lo_m, max_m=hi_m)
             return
         other = self._range_last.get("RANGEFINDER" if name == "DISTANCE_SENSOR" else "DISTANCE_SENSOR")
-        if other is not None and abs(recv_s - other[0]) <= self.cfg.range_cross_max_age_s:
-            tol = max(self.cfg.range_cross_tol_m, self.cfg.range_cross_tol_frac * max(range_m, other[1]))
-            if abs(range_m - other[1]) > tol:
+        if other is not None and abs(recv_s - other.recv_s) <= self.cfg.range_cross_max_age_s:
+            tol = max(self.cfg.range_cross_tol_m, self.cfg.range_cross_tol_frac * max(range_m, other.range_m))
+            if abs(range_m - other.range_m) > tol:
                 self._reject(recv_s, "disagrees", f"{name} {range_m:.2f} m but the same rangefinder's "
-                             f"{'RANGEFINDER' if name == 'DISTANCE_SENSOR' else 'DISTANCE_SENSOR'} {other[1]:.2f} m",
+                             f"{'RANGEFINDER' if name == 'DISTANCE_SENSOR' else 'DISTANCE_SENSOR'} {other.range_m:.2f} m",
                              t_us, boot, sensor="range", value_m=range_m, min_m=lo_m, max_m=hi_m)
                 return
         if self._stuck(raw, t_us, boot):
@@ -996,12 +1139,12 @@ class Normaliser:
     def _stuck(self, raw, t_us, boot) -> bool:
         run = self._run
         p = self._last_pressure_pa
-        if run is None or run[0] != raw or run[4] != boot or t_us < run[1]:
-            self._run = [raw, t_us, p, p, boot]
+        if run is None or run.raw != raw or run.boot != boot or t_us < run.t_start_us:
+            self._run = _RangeRun(raw, t_us, p, p, boot)
             return False
-        if t_us - run[1] < self._stuck_us or run[2] is None:
+        if t_us - run.t_start_us < self._stuck_us or run.p_min is None:
             return False
-        moved_m = height_from_pressure_m(run[2], run[3])  # p_min above p_max
+        moved_m = height_from_pressure_m(run.p_min, run.p_max)  # p_min above p_max
         return moved_m >= self.cfg.rangefinder_stuck_min_move_m
 
     # ------------------------------------------------------------------ autopilot's own height
@@ -1020,7 +1163,7 @@ class Normaliser:
             home_m = (f["alt"] - f["relative_alt"]) / 1000.0
             if self._anchor is not None:
                 # above the point the references are fixed at, whatever home the autopilot has now
-                rel_m = f["alt"] / 1000.0 - self._anchor[1]
+                rel_m = f["alt"] / 1000.0 - self._anchor.alt_msl_m
             self._note_rel("GLOBAL_POSITION_INT", t_us, rel_m, vel_up)
             if self._anchor is None:
                 self._home_last["autopilot_home"] = home_m
@@ -1031,7 +1174,7 @@ class Normaliser:
                     self._baro_released(*self.baro_ref.retry())
         # alt: mm MSL, none without a position (ArduPilot then sends 0 or its uncorrected baro altitude)
         alt_msl = f["alt"] / 1000.0 if f["lat"] != 0 or f["lon"] != 0 else None
-        item = (t_us, recv_s, self.clock.boot, alt_msl, rel_m, vel_up)
+        item = AutopilotItem(t_us, recv_s, self.clock.boot, alt_msl, rel_m, vel_up)
         for it in self.ap_sel.offer("GLOBAL_POSITION_INT", item):
             self._ap_selected(it)
 
@@ -1051,7 +1194,7 @@ class Normaliser:
             self._set_anchor("ekf_origin", self._ekf_origin_msl_m, "LOCAL_POSITION_NED")
         elif self._anchor is not None and self.baro_ref.value is None and self.baro_ref.held:
             self._baro_released(*self.baro_ref.retry())
-        item = (t_us, recv_s, self.clock.boot, None, up_m, vel_up)
+        item = AutopilotItem(t_us, recv_s, self.clock.boot, None, up_m, vel_up)
         for it in self.ap_sel.offer("LOCAL_POSITION_NED", item):
             self._ap_selected(it)
 
@@ -1082,7 +1225,7 @@ class Normaliser:
             ref_msl = self.gnss_ref_msl_m()
             if ref_msl is not None and (src == "GLOBAL_POSITION_INT" or self._ekf_origin_msl_m is not None):
                 self._ap_mode = "gnss_reference"
-            elif final or held[-1][2] != held[0][2] or held[-1][0] - held[0][0] >= self._gnss_wait_us:
+            elif final or held[-1].boot != held[0].boot or held[-1].t_us - held[0].t_us >= self._gnss_wait_us:
                 self._ap_mode = "autopilot_home" if src == "GLOBAL_POSITION_INT" else "ekf_origin"
             else:
                 return
@@ -1198,12 +1341,12 @@ def describe_system(mav_type: int, autopilot: int) -> str:
 
 
 def _estimate_on(cands, recv_s: float) -> int:
-    """Vehicle time at ``recv_s`` on the time base of ``cands`` ((t_us, recv_s, ...), in order):
+    """Vehicle time at ``recv_s`` on the time base of ``cands`` (in order):
     from the latest candidate received by then (the first one for earlier receive times)."""
-    t0, r0 = cands[0][0], cands[0][1]
+    t0, r0 = cands[0].t_us, cands[0].recv_s
     for c in cands:
-        if c[1] <= recv_s:
-            t0, r0 = c[0], c[1]
+        if c.recv_s <= recv_s:
+            t0, r0 = c.t_us, c.recv_s
         else:
             break
     return t0 + int(round((recv_s - r0) * 1e6))
@@ -1214,12 +1357,13 @@ def _sample_t(s) -> int:
 
 
 def _item_t(item):
-    return item[0], item[2]
+    """``(t_us, boot)`` of a held baro or GNSS item."""
+    return item.t_us, item.boot
 
 
-def _mean_pressure(items) -> float:
-    return sum(it[3] for it in items) / len(items)
+def _mean_pressure(items: List[BaroItem]) -> float:
+    return sum(it.p_pa for it in items) / len(items)
 
 
-def _mean_alt(items) -> float:
-    return sum(it[3] for it in items) / len(items)
+def _mean_alt(items: List[GnssItem]) -> float:
+    return sum(it.alt_m for it in items) / len(items)
