@@ -3,10 +3,12 @@
 One :class:`Normaliser` per link (a live connection or one tlog) is fed
 decoded-on-demand frames ``(recv_s, msgid, sysid, compid, payload)`` by a
 frame reader (:mod:`.tlog_reader` or :mod:`.stream_reader`), so live and
-replay share every rule below. Its output list (``out``) holds samples and
-events in arrival order, except that samples held for a reference or a
-bracketing attitude are released when it arrives; within each kind and
-boot ``t_us`` strictly increases.
+replay share every rule below. Each of :meth:`~Normaliser.feed`,
+:meth:`~Normaliser.problem`, :meth:`~Normaliser.tick` and
+:meth:`~Normaliser.finish` returns what it releases: samples and events in
+arrival order, except that samples held for a reference or a bracketing
+attitude are released when it arrives; within each kind and boot ``t_us``
+strictly increases.
 
 Decisions the issue left open (see also the module docs of :mod:`.clock`,
 :mod:`.attitude`, :mod:`.references`, :mod:`.streams`):
@@ -315,7 +317,7 @@ class Normaliser:
                  link_name: str = "the link"):
         cfg = self.cfg = config
         self.stats = stats if stats is not None else IngestStats()
-        self.out: List[object] = []
+        self._out: List[object] = []  # what the current call releases (see _drain)
         self.sysid = sysid
         self.link_name = link_name
         self._asked = sysid is not None
@@ -392,7 +394,16 @@ class Normaliser:
 
     # ------------------------------------------------------------------ input
 
-    def feed(self, recv_s: float, msgid: int, sysid: int, compid: int, payload: bytes) -> None:
+    def feed(self, recv_s: float, msgid: int, sysid: int, compid: int, payload: bytes) -> List[object]:
+        """One frame of the link; returns the samples and events it releases."""
+        self._frame(recv_s, msgid, sysid, compid, payload)
+        return self._drain()
+
+    def _drain(self) -> List[object]:
+        out, self._out = self._out, []
+        return out
+
+    def _frame(self, recv_s: float, msgid: int, sysid: int, compid: int, payload: bytes) -> None:
         if sysid != self.sysid:
             self._other_system(recv_s, msgid, sysid, payload)
             if self.sysid is None:
@@ -429,15 +440,16 @@ class Normaliser:
         if self._pre_imu and self._imu_out:
             self._merge_gate()
 
-    def problem(self, rejected: Rejected) -> None:
-        """A frame-level problem reported by the reader (garbage, CRC, unknown id...)."""
+    def problem(self, rejected: Rejected) -> List[object]:
+        """A frame-level problem reported by the reader (garbage, CRC, unknown id...): returns it."""
         self.stats.rejected[rejected.kind] += 1
         self.stats.events["Rejected"] += 1
-        self.out.append(rejected)
+        self._out.append(rejected)
+        return self._drain()
 
-    def tick(self, now_s: float) -> None:
+    def tick(self, now_s: float) -> List[object]:
         """Live links: declare the link lost after ``link_timeout_s`` of silence, and say
-        what is awaited while no heartbeat of the vehicle came."""
+        what is awaited while no heartbeat of the vehicle came. Returns those events."""
         if self.autopilot is None:
             self._say_waiting_heartbeat(now_s)
         last = self._last_recv
@@ -445,9 +457,10 @@ class Normaliser:
             self._link_lost = True
             self.stats.link_losses += 1
             self._emit(LinkLost(recv_s=now_s, silent_s=now_s - last))
+        return self._drain()
 
-    def finish(self) -> None:
-        """End of stream: decide what is pending and release everything held."""
+    def finish(self) -> List[object]:
+        """End of stream: decide what is pending and release everything held (returned)."""
         if self.sysid is None and self._preselect:
             self.stats.filtered["no_vehicle_heartbeat"] += len(self._preselect)
             self._preselect.clear()
@@ -455,6 +468,7 @@ class Normaliser:
             self._refute_candidates("at the end of the stream")
         self._settle_boot()
         self._finalise_stats()
+        return self._drain()
 
     # ------------------------------------------------------------------ vehicle
 
@@ -467,8 +481,8 @@ class Normaliser:
                 held = list(self._preselect)
                 self._preselect.clear()
                 for fr in held:
-                    self.feed(*fr)
-                self.feed(recv_s, msgid, sysid, compid, payload)
+                    self._frame(*fr)
+                self._frame(recv_s, msgid, sysid, compid, payload)
                 return
         if len(self._preselect) >= self.cfg.preselect_max_frames:
             self._preselect.popleft()
@@ -1264,7 +1278,7 @@ class Normaliser:
             return
         self.stats.samples[kind] += 1
         if kind not in GATED or (self._imu_out and not self._pre_imu):
-            self.out.append(sample)
+            self._out.append(sample)
             if kind == "imu":
                 self._imu_out = True  # what waited joins the output at the end of this frame (_merge_gate)
             return
@@ -1282,7 +1296,7 @@ class Normaliser:
             return
         self._pre_imu = []
         held.sort(key=_sample_t)
-        out = self.out
+        out = self._out
         merged: List[object] = []
         i, n = 0, len(held)
         boot = held[0].boot
@@ -1294,7 +1308,7 @@ class Normaliser:
                     i += 1
             merged.append(item)
         merged.extend(held[i:])
-        out[:] = merged  # the same list: a live source holds it
+        self._out = merged
 
     def _guarded(self, kind: str, t_us: int, recv_s: float, boot: int, sample) -> None:
         if self._admit(kind, t_us, recv_s, boot):
@@ -1305,7 +1319,7 @@ class Normaliser:
             self.stats.filtered["vehicle_class"] += 1
             return
         self.stats.events[type(event).__name__] += 1
-        self.out.append(event)
+        self._out.append(event)
 
     def _reject(self, recv_s: float, kind: str, detail: str, t_us: Optional[int] = None, boot: Optional[int] = None,
                 sensor: Optional[str] = None, value_m: float = math.nan, min_m: float = math.nan,
