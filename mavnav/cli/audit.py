@@ -21,7 +21,7 @@ from ..fleet.cache import DEFAULT_CACHE_DIR
 from . import main
 from .honest import check_outputs, honest_audit_result
 from .run import common_options
-from .viewer_options import make_viewer_sinks, viewer_options
+from .viewer_options import viewer_options, viewer_settings, viewer_sinks
 
 _RANK = {"nominal": 0, "caution": 1, "alarm": 2}
 
@@ -82,7 +82,7 @@ def format_table(r: dict) -> str:
 @common_options
 @viewer_options
 def audit_cmd(paths, json_path, fail_on, workers, scheduler, fleet_report, cache_dir, rerun, no_cache,
-              config_path, sysid, csv_path, inject, **viewer_kw) -> None:
+              config_path, sysid, csv_path, inject, viewer_flags) -> None:
     """Audit recorded tlogs (files or directories) without a viewer: alarms with
     times and sources, message rates and whether they support the
     time-to-alarm, channel availability, fused height against the
@@ -99,21 +99,22 @@ def audit_cmd(paths, json_path, fail_on, workers, scheduler, fleet_report, cache
     from ..sim.faults import parse_faults
 
     cfg = load_config(config_path)
+    viewer = viewer_settings(cfg, viewer_flags)
     faults = parse_faults(inject)  # a bad spec fails here, before any work
-    check_outputs({"--csv": csv_path, "--rrd": viewer_kw.get("rrd"), "--json": json_path},
+    check_outputs({"--csv": csv_path, "--rrd": viewer.rrd, "--json": json_path},
                   {"--fleet-report": fleet_report})
     slots = _slots(paths)
     files = [x for x in slots if isinstance(x, Path)]
     missing = [x for x in slots if isinstance(x, dict)]
     fleet = bool(workers > 1 or scheduler or fleet_report or cache_dir or rerun)
-    _check_run_kind(paths, files, missing, _wants_in_process(csv_path, viewer_kw), fleet)
+    _check_run_kind(paths, files, missing, _wants_in_process(csv_path, viewer), fleet)
     run = None
     if fleet:
         run = _audit_fleet(files, cfg, sysid=sysid, workers=workers, scheduler=scheduler, fleet_report=fleet_report,
                            cache_dir=cache_dir, rerun=rerun, no_cache=no_cache, inject=inject)
         file_results = list(run.results)
     else:
-        file_results = _audit_here(files, cfg, sysid=sysid, csv_path=csv_path, faults=faults, viewer_kw=viewer_kw)
+        file_results = _audit_here(files, cfg, sysid=sysid, csv_path=csv_path, faults=faults, viewer=viewer)
     it = iter(file_results)
     results: list[dict] = [x if isinstance(x, dict) else next(it) for x in slots]
     # --sysid with no data from that vehicle is an error; a tlog cut short says where
@@ -142,10 +143,9 @@ def _slots(paths) -> list:
     return slots
 
 
-def _wants_in_process(csv_path, viewer_kw: dict) -> bool:
+def _wants_in_process(csv_path, viewer) -> bool:
     """Whether an output (--csv, a viewer) needs the audit in this process."""
-    return bool(csv_path or viewer_kw.get("rrd") or viewer_kw.get("connect")
-                or viewer_kw.get("viewer") not in (None, "none"))
+    return bool(csv_path or viewer.rrd or viewer.connect or viewer.viewer != "none")
 
 
 def _check_run_kind(paths, files: list, missing: list, in_process: bool, fleet: bool) -> None:
@@ -173,7 +173,7 @@ def _audit_fleet(files: list, cfg, *, sysid, workers, scheduler, fleet_report, c
                      rerun=rerun, progress=Progress(), faults=inject)
 
 
-def _audit_here(files: list, cfg, *, sysid, csv_path, faults, viewer_kw: dict) -> list[dict]:
+def _audit_here(files: list, cfg, *, sysid, csv_path, faults, viewer) -> list[dict]:
     """Audit the files one by one in this process, with the CSV and viewer sinks."""
     from ..fleet.task import audit_one
     from ..sinks.csv_sink import CsvSink
@@ -186,7 +186,7 @@ def _audit_here(files: list, cfg, *, sysid, csv_path, faults, viewer_kw: dict) -
             extra = []
             if csv_path:
                 extra.append(CsvSink(csv_path))
-            extra += make_viewer_sinks(live=False, **viewer_kw)
+            extra += viewer_sinks(viewer, live=False)
             results.append(audit_one(f, cfg, sysid=sysid, extra_sinks=extra, faults=faults))
     return results
 

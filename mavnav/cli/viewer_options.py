@@ -12,10 +12,12 @@
     --viewer-hold/--no-viewer-hold
                                web viewer: keep serving after the run until Ctrl-C (default)
 
-and the command passes them on::
+each also a key of the configuration's ``viewer:`` section; a flag given on
+the command line wins over the key. The command receives the flags given as
+one dict, ``viewer_flags``, and builds the sinks from the two::
 
-    sinks += make_viewer_sinks(viewer, connect, rrd, live=..., web_port=web_port, grpc_port=grpc_port,
-                               viewer_bind=viewer_bind, viewer_window=viewer_window, viewer_hold=viewer_hold)
+    viewer = viewer_settings(cfg, viewer_flags)
+    sinks += viewer_sinks(viewer, live=...)
 
 Web mode runs ``rerun --serve-web`` (from rerun-sdk) as a child process that
 hosts both the viewer page and its data, bound to ``--viewer-bind``; the page
@@ -43,12 +45,16 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Optional
+from typing import TYPE_CHECKING, Callable, Optional
 from urllib.parse import quote, urlsplit
 
 import click
 
 from ..errors import MavnavError
+from .flags import flag_group
+
+if TYPE_CHECKING:
+    from ..config import Config, ViewerSection
 
 log = logging.getLogger("mavnav.cli.viewer")
 
@@ -58,8 +64,14 @@ DEFAULT_GRPC_PORT = 9876
 START_TIMEOUT_S = 15.0
 
 
+#: click parameter -> key of the configuration's ``viewer:`` section
+VIEWER_FLAGS = {"viewer": "viewer", "connect": "connect", "rrd": "rrd", "web_port": "web_port",
+                "grpc_port": "grpc_port", "viewer_bind": "bind", "viewer_window": "window_s", "viewer_hold": "hold"}
+
+
 def viewer_options(f: Callable) -> Callable:
-    """Add the Rerun viewer options to a click command."""
+    """Add the Rerun viewer options to a click command, which receives those
+    given on the command line as one dict, ``viewer_flags``."""
     options = [
         click.option("--viewer", type=click.Choice(VIEWERS), default="none", show_default=True,
                      help="Show the run in Rerun: spawn a native viewer, or serve a web viewer."),
@@ -79,9 +91,21 @@ def viewer_options(f: Callable) -> Callable:
         click.option("--viewer-hold/--no-viewer-hold", default=True, show_default=True,
                      help="--viewer web: keep serving after the run ends, until Ctrl-C."),
     ]
-    for option in reversed(options):
-        f = option(f)
-    return f
+    return flag_group(options, tuple(VIEWER_FLAGS), "viewer_flags")(f)
+
+
+def viewer_settings(cfg: Config, flags: dict) -> ViewerSection:
+    """The configuration's ``viewer:`` section with the flags given over it."""
+    from ..config import with_overrides
+
+    return with_overrides(cfg.viewer, {VIEWER_FLAGS[k]: v for k, v in flags.items()}, "viewer options")
+
+
+def viewer_sinks(viewer: ViewerSection, live: bool) -> list:
+    """:func:`make_viewer_sinks` for these settings."""
+    return make_viewer_sinks(viewer.viewer, viewer.connect, viewer.rrd, live=live, web_port=viewer.web_port,
+                             grpc_port=viewer.grpc_port, viewer_bind=viewer.bind, viewer_window=viewer.window_s,
+                             viewer_hold=viewer.hold)
 
 
 # --------------------------------------------------------------------------
@@ -406,5 +430,5 @@ def _rerun_sink(found: _Targets, rr, application_id: str, live: bool, window_s: 
     return sink
 
 
-__all__ = ["viewer_options", "make_viewer_sinks", "grpc_url", "web_page_url", "port_open", "free_port",
+__all__ = ["viewer_options", "viewer_settings", "viewer_sinks", "VIEWER_FLAGS", "make_viewer_sinks", "grpc_url", "web_page_url", "port_open", "free_port",
            "rerun_executable", "ViewerProcess"]
