@@ -12,8 +12,6 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
-from typing import Optional
-
 import click
 
 from ..errors import MavnavError
@@ -45,7 +43,7 @@ def format_table(r: dict) -> str:
     lines.append("  overall: " + (", ".join(f"{k} {100 * v:.1f}%" for k, v in ov.items() if v > 0)
                                   or ("not applicable" if not r.get("height_integrity_applies", True) else "no epochs")))
     rms = r["fused_vs_autopilot_rms_m"]
-    lines.append(f"  fused vs autopilot height: " + (f"RMS {rms:.2f} m, max {r['fused_vs_autopilot_max_m']:.2f} m"
+    lines.append("  fused vs autopilot height: " + (f"RMS {rms:.2f} m, max {r['fused_vs_autopilot_max_m']:.2f} m"
                                                      if rms is not None else "no autopilot height"))
     alarms = r["alarms"]
     n_alarm = sum(a["state"] == "alarm" for a in alarms)
