@@ -94,7 +94,7 @@ import bisect
 import math
 from collections import deque
 from dataclasses import dataclass
-from typing import Callable, Deque, List, NamedTuple, Optional
+from typing import Deque, List, NamedTuple, Optional
 
 from ..atmosphere import height_from_pressure_m, pressure_at_height_pa
 from ..config import IngestConfig
@@ -117,7 +117,7 @@ from ..samples import (
 )
 from . import wire
 from .attitude import AttitudeInterpolator
-from .clock import HOLD, UNIX_THRESHOLD_US, StreamClocks, VehicleClock
+from .timebase import SETTLED, ClockStepped, NewBoot, Placed, TimeBase
 from .references import ReferenceResolver
 from .stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
 from .streams import KindGuard, SourceSelector
@@ -143,10 +143,6 @@ REL_HIST_MAX = 8192
 WAIT_HEARTBEAT_S = 2.0  # live: no vehicle heartbeat this long after starting: say what is awaited
 WAIT_HEARTBEAT_REPEAT_S = 10.0  # and again this often
 OTHER_FRAMES_BEFORE_SAYING = 20  # another system without a heartbeat is said after this many frames
-BEHIND_US = 300_000  # a vehicle time this far behind the clock starts a candidate time base
-CONFIRM_N = 5  # messages on a new time base before it is adopted ...
-CONFIRM_SPAN_US = 1_000_000  # ... spanning this much of its time (or catching up), nothing of the old one between
-CLOCK_STEP_GAP_US = 1_000  # after a step back, the first new time lands this far after the last old one
 HOME_CONFIRM_N = 3  # GLOBAL_POSITION_INT messages in a row that must show a moved home
 
 IMU_RANKING = ("HIGHRES_IMU", "RAW_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3")
@@ -216,34 +212,6 @@ class AutopilotItem(NamedTuple):
     alt_msl: Optional[float]  # GLOBAL_POSITION_INT alt (None without a position; LOCAL_POSITION_NED: None)
     local_up: float  # above its home (relative_alt) or its EKF origin (-z)
     vel_up: float
-
-
-class _Candidate(NamedTuple):
-    """A message on a new vehicle time base not yet confirmed: its handler ``fn`` runs on ``f`` once adopted."""
-
-    t_us: int
-    recv_s: float
-    fn: Callable
-    f: object
-
-
-class _UsecKey(NamedTuple):
-    """A follower's key for a ``time_usec`` stream (see :meth:`Normaliser._usec_stream`)."""
-
-    key: tuple  # its StreamClocks key
-    what: str  # its name in messages
-
-
-class _Follower(NamedTuple):
-    """A message that waits for the verdict on a new time base: ``key`` None
-    (untimed), a :class:`_UsecKey` (a time_usec stream) or a StreamClocks
-    key, with its raw time."""
-
-    key: Optional[tuple]
-    t_raw: Optional[int]
-    recv_s: float
-    fn: Callable
-    f: object
 
 
 class _Anchor(NamedTuple):
@@ -325,13 +293,12 @@ class Normaliser:
         self._others: dict[int, _OtherSystem] = {}  # other systems heard, by sysid
         self._wait_hb_t0: Optional[float] = None  # receive time of the first tick (live)
         self._wait_hb_next: Optional[float] = None
-        self.ap_compid = MAV_COMP_ID_AUTOPILOT1
         self.autopilot: Optional[int] = None
         self._preselect: Deque[tuple] = deque()
         if sysid is not None:
             self.stats.vehicle = VehicleInfo(sysid=sysid)
-        self.clock = VehicleClock(cfg.reboot_jump_s)
-        self.streams = StreamClocks()
+        self.time = TimeBase(cfg.reboot_jump_s)
+        self.clock = self.time.clock  # read here (boot, last time); moved by the time stage only
         self.att = AttitudeInterpolator(cfg.attitude_wait_s, cfg.attitude_max_age_s)
         self.guard = KindGuard(cfg.gap_min_s, cfg.gap_factor)
         self.imu_sel = SourceSelector(IMU_RANKING, cfg.imu_source, cfg.source_select_s)
@@ -354,8 +321,6 @@ class Normaliser:
         self._wait_said: set = set()
         self._imu_out = False  # an IMU sample of this boot went out
         self._pre_imu: List[object] = []  # measurements waiting for it
-        self._cands: List[_Candidate] = []  # a new vehicle time base, unconfirmed
-        self._followers: List[_Follower] = []
         self._last_recv: Optional[float] = None
         self._link_lost = False
         self._geoid_sep_m: Optional[float] = None
@@ -365,7 +330,7 @@ class Normaliser:
         self._gnss_wait_us = int(cfg.gnss_reference.home_wait_s * 1e6)
         self._cos_max_tilt = math.cos(math.radians(cfg.rangefinder_max_tilt_deg))
         self._stuck_us = int(cfg.rangefinder_stuck_s * 1e6)
-        self._run: Optional[_RangeRun] = None
+        self._range_run: Optional[_RangeRun] = None
         # the latest reading of each rangefinder message, for the cross-check, by message name
         self._range_last: dict[str, _RangeReading] = {}
         self._last_pressure_pa: Optional[float] = None
@@ -391,6 +356,18 @@ class Normaliser:
         }
         for mid in PRESSURE_IDS.values():
             self._handlers[mid] = self._scaled_pressure
+        # what the time stage places (timebase.Placed.what) -> its handler, (f, t_us, recv_s)
+        self._placed = {
+            "system_time": self._system_time_at,
+            "attitude": self._attitude_at,
+            "imu": self._imu_at,
+            "pressure": self._pressure_at,
+            "gnss": self._gnss_at,
+            "distance_sensor": self._distance_sensor_at,
+            "rangefinder": self._rangefinder_at,
+            "global_position_int": self._global_position_int_at,
+            "local_position_ned": self._local_position_ned_at,
+        }
 
     # ------------------------------------------------------------------ input
 
@@ -464,8 +441,7 @@ class Normaliser:
         if self.sysid is None and self._preselect:
             self.stats.filtered["no_vehicle_heartbeat"] += len(self._preselect)
             self._preselect.clear()
-        if self._cands:
-            self._refute_candidates("at the end of the stream")
+        self._on_time(self.time.finish())
         self._settle_boot()
         self._finalise_stats()
         return self._drain()
@@ -492,7 +468,7 @@ class Normaliser:
     def _heartbeat(self, f, recv_s, compid) -> None:
         if self.autopilot is None and f["autopilot"] != MAV_AUTOPILOT_INVALID and f["type"] != MAV_TYPE_GCS:
             self.autopilot = f["autopilot"]
-            self.ap_compid = compid
+            self.time.ap_compid = compid
             self.stats.vehicle = VehicleInfo(self.sysid, compid, f["type"], f["autopilot"])
             why = "as asked (--sysid)" if self._asked else "the first autopilot heartbeat"
             self._emit(Notice(recv_s, "vehicle", f"monitoring system {self.sysid} "
@@ -558,133 +534,26 @@ class Normaliser:
 
     # ------------------------------------------------------------------ time
 
-    def _timed(self, t_us: int, recv_s: float, compid: int, fn, f) -> None:
-        """Route a ``time_boot_ms``-stamped message through the vehicle clock, then to ``fn``.
-
-        A time far behind the clock (or too far ahead) starts a *candidate*
-        time base. It is adopted only once at least ``CONFIRM_N`` messages
-        continue it, with nothing from the old one in between, over
-        ``CONFIRM_SPAN_US`` of their own time or until they catch up with
-        the old time base (a small step back): a reboot (behind by
-        ``reboot_jump_s`` or more), a step of the vehicle clock (behind by
-        less: later times are moved on by the step, so there is one
-        timeline and nothing is lost), or a jump forward. A message that
-        leaps from the candidates back to the old time base refutes them:
-        they were stale packets (a radio's buffer, a late burst after an
-        outage: dropped, counted as ``stale``) or a corrupt time
-        (``time_jump``)."""
-        if compid != self.ap_compid:
-            # another component's clock: mapped onto ours, never drives it
-            self._stream_time(("boot_ms", compid, fn.__name__), t_us, recv_s, fn, f)
-            return
-        clock = self.clock
-        t_us += clock.step_us
-        cands = self._cands
-        if cands:
-            last = clock.last_t_us
-            ct0, ct1 = cands[0].t_us, cands[-1].t_us
-            if ct0 < last:  # behind: refuted by a leap from the candidates back to the old time base
-                back_to_old = t_us >= last - BEHIND_US and t_us - ct1 > BEHIND_US
-                goes_on = not back_to_old and t_us >= ct1 - BEHIND_US
-            else:  # ahead: refuted by a time back near the old one
-                goes_on = t_us >= ct1 - BEHIND_US
-            if goes_on:
-                cands.append(_Candidate(t_us, recv_s, fn, f))
-                caught_up = ct0 < last and t_us >= last - BEHIND_US
-                if len(cands) >= CONFIRM_N and (t_us - ct0 >= CONFIRM_SPAN_US or caught_up):
-                    self._adopt_candidates()
-                return
-            self._refute_candidates(f"then {t_us} us")
-        if clock.classify(t_us, recv_s, BEHIND_US) == HOLD:
-            self._cands = [_Candidate(t_us, recv_s, fn, f)]
-            return
-        clock.accept(t_us, recv_s)
-        fn(f, t_us, recv_s)
-        if self.att.pending:
-            self._resolve_attitude()
-
-    def _adopt_candidates(self) -> None:
-        cands, self._cands = self._cands, []
-        clock = self.clock
-        t0, recv0 = cands[0].t_us, cands[0].recv_s
-        last = clock.last_t_us
-        if t0 < last - clock.jump_us:
-            self._reboot(t0, recv0)
-        elif t0 < last:
-            step = last - t0 + CLOCK_STEP_GAP_US  # the first new time just after the last old one
-            clock.step_us += step
-            cands = [c._replace(t_us=c.t_us + step) for c in cands]
-            self.streams.reset()  # the other clocks are placed on it again
-            self.stats.clock_steps += 1
-            self._emit(Notice(recv0, "clock_step",
-                              f"vehicle clock stepped back {(last - t0) * 1e-6:.2f} s at {last * 1e-6:.3f} s "
-                              f"(boot {clock.boot}): later times moved on by {step * 1e-6:.2f} s to keep one timeline"))
-        else:
-            clock.jump_to(t0, recv0)
-        for c in cands:
-            clock.accept(c.t_us, c.recv_s)
-            c.fn(c.f, c.t_us, c.recv_s)
-        self._release_followers(cands)
-        if self.att.pending:
-            self._resolve_attitude()
-
-    def _refute_candidates(self, why: str) -> None:
-        cands, self._cands = self._cands, []
-        last = self.clock.last_t_us
-        for c in cands:
-            t = c.t_us
-            if last is not None and t < last:
-                self._reject(c.recv_s, "stale", f"vehicle time {t} us against {last} us, {why}: an isolated old packet",
-                             t)
-            else:
-                self._reject(c.recv_s, "time_jump", f"vehicle time {t} us against {last} us, {why}", t)
-        self._release_followers()
-
-    def _stream_time(self, key, t_raw: int, recv_s: float, fn, f, est: Optional[int] = None) -> None:
-        """A time that may be on another clock (``time_usec``, other components): see StreamClocks.
-
-        While a new time base is unconfirmed these wait for its verdict, so that
-        the samples right after a reboot land in the new boot."""
-        if self._cands:
-            self._followers.append(_Follower(key, t_raw, recv_s, fn, f))
-            return
-        if est is None:
-            est = self.clock.estimate(recv_s)
-        for t_us, (ffn, ff, frecv) in self.streams.map(key, t_raw, est, (fn, f, recv_s)):
-            ffn(ff, t_us, frecv)
-        if self.att.pending:
-            self._resolve_attitude()
-
-    def _untimed(self, recv_s: float, fn, f, what: str) -> None:
-        """A message without a time of its own: placed on the vehicle clock by receive time."""
-        if self._cands:
-            self._followers.append(_Follower(None, None, recv_s, fn, f))
-            return
-        t_us = self.clock.estimate(recv_s)
-        if t_us is None:
-            self._reject(recv_s, "no_time", f"{what} before any timed message")
-        else:
-            fn(f, t_us, recv_s)
-
-    def _release_followers(self, cands: Optional[list] = None) -> None:
-        """Release what waited for a verdict on a new time base; after one was adopted
-        (``cands``, its messages), their receive times place them on it."""
-        followers, self._followers = self._followers, []
-        for key, t_raw, recv_s, fn, f in followers:
-            est = _estimate_on(cands, recv_s) if cands else None
-            if key is None:
-                if est is None:
-                    self._untimed(recv_s, fn, f, "untimed message")
-                else:
-                    fn(f, est, recv_s)
-            elif type(key) is _UsecKey:
-                self._usec_stream(key.key, t_raw, recv_s, key.what, fn, f, est)
-            else:
-                self._stream_time(key, t_raw, recv_s, fn, f, est)
+    def _on_time(self, steps) -> None:
+        """Act on the time stage's steps (see :mod:`.timebase`), each before taking the next."""
+        placed = self._placed
+        for step in steps:
+            kind = type(step)
+            if kind is Placed:
+                placed[step.what](step.f, step.t_us, step.recv_s)
+            elif step is SETTLED:
+                if self.att.pending:
+                    self._resolve_attitude()
+            elif kind is NewBoot:
+                self._reboot(step.t_us, step.recv_s)
+            elif kind is ClockStepped:
+                self.stats.clock_steps += 1
+                self._emit(Notice(step.recv_s, "clock_step", step.text))
+            else:  # Refused
+                self._reject(step.recv_s, step.kind, step.detail, step.t_us)
 
     def _flush_streams(self) -> None:
-        for t_us, (ffn, ff, frecv) in self.streams.flush():
-            ffn(ff, t_us, frecv)
+        self._on_time(self.time.flush())
 
     def _settle_boot(self) -> None:
         """Release everything held for the current boot: stream ordering,
@@ -707,11 +576,9 @@ class Normaliser:
 
     def _reboot(self, t_us: int, recv_s: float) -> None:
         self._settle_boot()  # what belongs to the old boot goes out before the Reboot event
-        last = self.clock.last_t_us
-        boot = self.clock.new_boot(t_us, recv_s)
+        last, boot = self.time.new_boot(t_us, recv_s)
         self.att.reset()
-        self.streams.reset()
-        self._run = None
+        self._range_run = None
         for hist in self._rel_hist.values():
             hist.clear()
         self._imu_out = False
@@ -719,27 +586,10 @@ class Normaliser:
         self._emit(Reboot(t_us=t_us, recv_s=recv_s, boot=boot, last_t_us=last if last is not None else 0))
 
     def _system_time(self, f, recv_s, compid) -> None:
-        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._system_time_at, f)
+        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "system_time", f))
 
     def _system_time_at(self, f, t_us, recv_s) -> None:
         self.clock.set_unix_offset(f["time_unix_usec"], t_us)
-
-    def _usec_stream(self, key, t_usec: int, recv_s: float, what: str, fn, f, est: Optional[int] = None) -> None:
-        """A ``time_usec`` stream: boot time, Unix time or none, then :meth:`_stream_time`.
-        Unix and missing times are placed by the vehicle clock: while a new time base is
-        unconfirmed they wait, and are placed on the one that holds."""
-        if self._cands and (t_usec == 0 or t_usec >= UNIX_THRESHOLD_US):
-            self._followers.append(_Follower(_UsecKey(key, what), t_usec, recv_s, fn, f))
-            return
-        t = self._usec(t_usec, recv_s, what)
-        if t is not None:
-            self._stream_time(key, t, recv_s, fn, f, est)
-
-    def _usec(self, t_usec: int, recv_s: float, what: str) -> Optional[int]:
-        t = self.clock.boot_from_usec(t_usec, recv_s)
-        if t is None:
-            self._reject(recv_s, "no_time", f"{what}: cannot place time_usec {t_usec} on the vehicle clock")
-        return t
 
     # ------------------------------------------------------------------ attitude and IMU
 
@@ -747,7 +597,8 @@ class Normaliser:
         if not _finite(f["roll"], f["pitch"], f["yaw"]):
             self._reject(recv_s, "nan", "ATTITUDE with a non-finite angle")
             return
-        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._attitude_at, quat_from_euler(f["roll"], f["pitch"], f["yaw"]))
+        q = quat_from_euler(f["roll"], f["pitch"], f["yaw"])
+        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "attitude", q))
 
     def _attitude_quaternion(self, f, recv_s, compid) -> None:
         q = (f["q1"], f["q2"], f["q3"], f["q4"])
@@ -759,7 +610,7 @@ class Normaliser:
             self._reject(recv_s, "impossible", f"ATTITUDE_QUATERNION norm {n:.3g}")
             return
         q = tuple(c / n for c in q)
-        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._attitude_at, q)
+        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "attitude", q))
 
     def _attitude_at(self, q, t_us, recv_s) -> None:
         self.att.add(t_us, q)
@@ -797,9 +648,9 @@ class Normaliser:
             self._reject(recv_s, "impossible", f"{name} acceleration beyond 50 g")
             return
         if usec:
-            self._usec_stream((name, compid), t_raw, recv_s, name, self._imu_at, (fb, name))
+            self._on_time(self.time.usec((name, compid), t_raw, recv_s, name, "imu", (fb, name)))
         else:
-            self._timed(t_raw, recv_s, compid, self._imu_at, (fb, name))
+            self._on_time(self.time.boot_ms(t_raw, recv_s, compid, "imu", (fb, name)))
 
     def _imu_at(self, payload, t_us, recv_s) -> None:
         fb, name = payload
@@ -833,11 +684,11 @@ class Normaliser:
         if not 0.0 < p_pa < MAX_PRESSURE_PA:
             self._reject(recv_s, "impossible", f"static pressure {p_pa:.6g} Pa")
             return
-        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._pressure_at, p_pa)
+        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "pressure", p_pa))
 
     def _pressure_at(self, p_pa, t_us, recv_s) -> None:
         self._last_pressure_pa = p_pa
-        run = self._run
+        run = self._range_run
         if run is not None:
             run.p_min = p_pa if run.p_min is None else min(run.p_min, p_pa)
             run.p_max = p_pa if run.p_max is None else max(run.p_max, p_pa)
@@ -1012,9 +863,9 @@ class Normaliser:
         sigma_m = v_acc / 1000.0 if 0 < v_acc < UINT32_MAX else None  # mm, 0 = unknown
         payload = (alt_m, sigma_m, fix, f["satellites_visible"])
         if f["time_usec"] == 0:  # not filled: placed on the vehicle clock by receive time
-            self._untimed(recv_s, self._gnss_at, payload, "GPS_RAW_INT without time")
+            self._on_time(self.time.untimed(recv_s, "gnss", payload, "GPS_RAW_INT without time"))
             return
-        self._usec_stream(("GPS_RAW_INT", compid), f["time_usec"], recv_s, "GPS_RAW_INT", self._gnss_at, payload)
+        self._on_time(self.time.usec(("GPS_RAW_INT", compid), f["time_usec"], recv_s, "GPS_RAW_INT", "gnss", payload))
 
     def _gnss_at(self, payload, t_us, recv_s) -> None:
         alt_m, sigma_m, fix, sats = payload
@@ -1083,7 +934,7 @@ class Normaliser:
         self._note(self.range_sel, "DISTANCE_SENSOR", self._range_selected)
         if f["signal_quality"] != DISTANCE_SENSOR_QUALITY_INVALID:
             self._range_last["DISTANCE_SENSOR"] = _RangeReading(recv_s, f["current_distance"] / 100.0)
-        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._distance_sensor_at, f)
+        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "distance_sensor", f))
 
     def _distance_sensor_at(self, f, t_us, recv_s) -> None:
         item = RangeItem(t_us, recv_s, self.clock.boot, "DISTANCE_SENSOR", f)
@@ -1093,7 +944,7 @@ class Normaliser:
     def _rangefinder(self, f, recv_s, compid) -> None:
         if _finite(f["distance"]):
             self._range_last["RANGEFINDER"] = _RangeReading(recv_s, f["distance"])
-        self._untimed(recv_s, self._rangefinder_at, f, "RANGEFINDER")  # no time field: see clock.py
+        self._on_time(self.time.untimed(recv_s, "rangefinder", f, "RANGEFINDER"))  # no time field: see clock.py
 
     def _rangefinder_at(self, f, t_us, recv_s) -> None:
         self._note(self.range_sel, "RANGEFINDER", self._range_selected)
@@ -1151,10 +1002,10 @@ class Normaliser:
         self._yield("range", RangeHeight(t_us, recv_s, boot, range_m * c, range_m, name, lo_m, hi_m))
 
     def _stuck(self, raw, t_us, boot) -> bool:
-        run = self._run
+        run = self._range_run
         p = self._last_pressure_pa
         if run is None or run.raw != raw or run.boot != boot or t_us < run.t_start_us:
-            self._run = _RangeRun(raw, t_us, p, p, boot)
+            self._range_run = _RangeRun(raw, t_us, p, p, boot)
             return False
         if t_us - run.t_start_us < self._stuck_us or run.p_min is None:
             return False
@@ -1165,7 +1016,7 @@ class Normaliser:
 
     def _global_position_int(self, f, recv_s, compid) -> None:
         self._note(self.ap_sel, "GLOBAL_POSITION_INT", self._ap_selected)
-        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._global_position_int_at, f)
+        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "global_position_int", f))
 
     def _global_position_int_at(self, f, t_us, recv_s) -> None:
         rel_m = f["relative_alt"] / 1000.0  # mm above home
@@ -1197,7 +1048,7 @@ class Normaliser:
             self._reject(recv_s, "nan", "LOCAL_POSITION_NED with a non-finite z")
             return
         self._note(self.ap_sel, "LOCAL_POSITION_NED", self._ap_selected)
-        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._local_position_ned_at, f)
+        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "local_position_ned", f))
 
     def _local_position_ned_at(self, f, t_us, recv_s) -> None:
         up_m = -f["z"]  # z is down, m, above the EKF origin
@@ -1352,18 +1203,6 @@ def describe_system(mav_type: int, autopilot: int) -> str:
     if mav_type == MAV_TYPE_GCS:
         return "ground station"
     return f"{word('MAV_TYPE', mav_type, 'MAV_TYPE_')}, {ap}"
-
-
-def _estimate_on(cands, recv_s: float) -> int:
-    """Vehicle time at ``recv_s`` on the time base of ``cands`` (in order):
-    from the latest candidate received by then (the first one for earlier receive times)."""
-    t0, r0 = cands[0].t_us, cands[0].recv_s
-    for c in cands:
-        if c.recv_s <= recv_s:
-            t0, r0 = c.t_us, c.recv_s
-        else:
-            break
-    return t0 + int(round((recv_s - r0) * 1e6))
 
 
 def _sample_t(s) -> int:
