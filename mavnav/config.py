@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Literal, Optional, Union
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from .constants import G0_MPS2
 from .errors import ConfigError
@@ -380,15 +380,22 @@ class EmitSection(_Section):
     command_timeout_s: float = Field(1.0, gt=0)
     command_attempts: int = Field(3, ge=1)
     sysid: int = Field(1, ge=1, le=255)  # --emit-sysid: the system id mavnav sends as
-    compid: int = Field(191, ge=2, le=255)  # --emit-compid (1, the autopilot's, is refused)
+    compid: int = Field(191, ge=1, le=255)  # --emit-compid (1, the autopilot's, is refused)
     altitude_rate_hz: float = Field(5.0, gt=0, le=100)  # --altitude-rate, on vehicle time
-    statustext_interval_s: float = Field(1.0, ge=0)  # --statustext-interval
+    statustext_interval_s: float = Field(1.0, ge=0, allow_inf_nan=False)  # --statustext-interval
     debug_values: bool = False  # --emit-debug: residuals and test statistics as NAMED_VALUE_FLOAT
     fusable: bool = False  # --emit-fusable: ODOMETRY for an autopilot to fuse
     # --request-rate NAME:HZ (with --allow-commands): instead of the rates `request` derives
     message_rates: tuple[str, ...] = ()
     signing_key: Optional[str] = None  # --signing-key FILE
     signing_link_id: int = Field(0, ge=0, le=255)  # --signing-link-id
+
+    @field_validator("compid")
+    @classmethod
+    def _not_the_autopilot(cls, v: int) -> int:
+        if v == 1:
+            raise ValueError("1 is the autopilot's component id; mavnav never impersonates it (use e.g. 191)")
+        return v
 
 
 # ---------------------------------------------------------------- the viewer

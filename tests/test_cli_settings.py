@@ -132,3 +132,24 @@ def test_audit_takes_the_configured_recording(tmp_path):
     assert res.exit_code == 2 and "exactly one file" in res.output
     res = CliRunner().invoke(main, ["audit", missing])  # without the key: the missing file is reported
     assert res.exit_code == 2 and "exactly one file" not in res.output and "UNREADABLE" in res.output
+
+
+@pytest.mark.parametrize("kw,match", [
+    ({"compid": 1}, "autopilot"),
+    ({"sysid": 0}, "emit: sysid"),
+    ({"sysid": 256}, "emit: sysid"),
+    ({"altitude_rate_hz": float("nan")}, "altitude_rate_hz"),
+    ({"altitude_rate_hz": 0.0}, "altitude_rate_hz"),
+    ({"statustext_interval_s": float("inf")}, "statustext_interval_s"),
+    ({"statustext_interval_s": -1.0}, "statustext_interval_s"),
+    ({"signing_link_id": 256}, "signing_link_id"),
+    ({"command_attempts": 0}, "command_attempts"),
+    ({"command_timeout_s": 0.0}, "command_timeout_s"),
+    ({"signing_key": b"short"}, "32 bytes"),
+])
+def test_the_sink_config_refuses_what_the_section_refuses(kw, match):
+    from mavnav.sinks.mavlink_out import EmitConfig
+
+    with pytest.raises(ConfigError, match=match):
+        EmitConfig(**kw)
+    EmitConfig()  # the defaults pass
