@@ -638,9 +638,8 @@ class Normaliser:
         return handler
 
     def _imu(self, fb, name, t_raw, usec: bool, recv_s, compid) -> None:
-        if self.imu_sel.chosen is None:
-            for it in self.imu_sel.note(name, self.clock.last_t_us):
-                self._imu_selected(it)
+        for it in self._noted(self.imu_sel, name):
+            self._imu_selected(it)
         if not _finite(*fb):
             self._reject(recv_s, "nan", f"{name} with a non-finite acceleration")
             return
@@ -931,7 +930,8 @@ class Normaliser:
         if f["orientation"] != MAV_SENSOR_ROTATION_PITCH_270:
             self.stats.filtered["range_not_downward"] += 1
             return
-        self._note(self.range_sel, "DISTANCE_SENSOR", self._range_selected)
+        for it in self._noted(self.range_sel, "DISTANCE_SENSOR"):
+            self._range_selected(it)
         if f["signal_quality"] != DISTANCE_SENSOR_QUALITY_INVALID:
             self._range_last["DISTANCE_SENSOR"] = _RangeReading(recv_s, f["current_distance"] / 100.0)
         self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "distance_sensor", f))
@@ -947,7 +947,8 @@ class Normaliser:
         self._on_time(self.time.untimed(recv_s, "rangefinder", f, "RANGEFINDER"))  # no time field: see clock.py
 
     def _rangefinder_at(self, f, t_us, recv_s) -> None:
-        self._note(self.range_sel, "RANGEFINDER", self._range_selected)
+        for it in self._noted(self.range_sel, "RANGEFINDER"):
+            self._range_selected(it)
         item = RangeItem(t_us, recv_s, self.clock.boot, "RANGEFINDER", f)
         for it in self.range_sel.offer("RANGEFINDER", item):
             self._range_selected(it)
@@ -1015,7 +1016,8 @@ class Normaliser:
     # ------------------------------------------------------------------ autopilot's own height
 
     def _global_position_int(self, f, recv_s, compid) -> None:
-        self._note(self.ap_sel, "GLOBAL_POSITION_INT", self._ap_selected)
+        for it in self._noted(self.ap_sel, "GLOBAL_POSITION_INT"):
+            self._ap_selected(it)
         self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "global_position_int", f))
 
     def _global_position_int_at(self, f, t_us, recv_s) -> None:
@@ -1047,7 +1049,8 @@ class Normaliser:
         if not _finite(f["z"]):
             self._reject(recv_s, "nan", "LOCAL_POSITION_NED with a non-finite z")
             return
-        self._note(self.ap_sel, "LOCAL_POSITION_NED", self._ap_selected)
+        for it in self._noted(self.ap_sel, "LOCAL_POSITION_NED"):
+            self._ap_selected(it)
         self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "local_position_ned", f))
 
     def _local_position_ned_at(self, f, t_us, recv_s) -> None:
@@ -1071,10 +1074,10 @@ class Normaliser:
         if self._anchor is None and self._rel_hist["LOCAL_POSITION_NED"]:
             self._set_anchor("ekf_origin", alt_m, "LOCAL_POSITION_NED")
 
-    def _note(self, sel, name: str, then) -> None:
-        if sel.chosen is None:
-            for it in sel.note(name, self.clock.last_t_us):
-                then(it)
+    def _noted(self, sel: SourceSelector, name: str) -> list:
+        """A message of source ``name`` arrived: the items held for the source
+        choice it settles, if it does (else none)."""
+        return sel.note(name, self.clock.last_t_us) if sel.chosen is None else []
 
     def _ap_selected(self, item) -> None:
         self.stats.autopilot_source = self.ap_sel.chosen
