@@ -90,13 +90,12 @@ Decisions the issue left open (see also the module docs of :mod:`.clock`,
 
 from __future__ import annotations
 
-import bisect
 import math
 from collections import deque
 from dataclasses import dataclass
 from typing import Deque, List, NamedTuple, Optional
 
-from ..atmosphere import height_from_pressure_m, pressure_at_height_pa
+from ..atmosphere import height_from_pressure_m
 from ..config import IngestConfig
 from ..constants import G0_MPS2
 from ..frames import cos_tilt, down_row_from_quat, f_up_from_body, quat_from_euler
@@ -117,8 +116,8 @@ from ..samples import (
 )
 from . import wire
 from .attitude import AttitudeInterpolator
+from .heightref import GNSS_FIXED, BaroItem, GnssItem, HeightReferences
 from .timebase import SETTLED, ClockStepped, NewBoot, Placed, TimeBase
-from .references import ReferenceResolver
 from .stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
 from .streams import KindGuard, SourceSelector
 from .vehicle_class import is_height_input, not_applicable_reason, notice_text
@@ -133,17 +132,12 @@ DISTANCE_SENSOR_QUALITY_INVALID = 1
 UINT32_MAX = 0xFFFFFFFF
 MAX_SPECIFIC_FORCE_MPS2 = 50 * G0_MPS2  # beyond any airframe IMU range
 MAX_PRESSURE_PA = 2.0e7  # 200 bar: deeper than any ROV depth sensor reads
-REL_ALT_MAX_AGE_US = 1_000_000  # a baro sample pairs with the autopilot's height this close in time
-ANCHOR_WINDOW_US = 1_000_000  # baro samples averaged for a reference from the autopilot (capped by startup_window_s)
 HOME_UNSET_MM = 50  # GLOBAL_POSITION_INT alt - relative_alt below this: ArduPilot's home not yet set
-WAIT_NOTICE_US = 1_000_000  # held this long for a reference: say what for
 PRE_IMU_HOLD_US = 5_000_000  # at most this long do measurements wait for the first IMU sample of a boot
 GATED = frozenset(("baro", "gnss", "range"))
-REL_HIST_MAX = 8192
 WAIT_HEARTBEAT_S = 2.0  # live: no vehicle heartbeat this long after starting: say what is awaited
 WAIT_HEARTBEAT_REPEAT_S = 10.0  # and again this often
 OTHER_FRAMES_BEFORE_SAYING = 20  # another system without a heartbeat is said after this many frames
-HOME_CONFIRM_N = 3  # GLOBAL_POSITION_INT messages in a row that must show a moved home
 
 IMU_RANKING = ("HIGHRES_IMU", "RAW_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3")
 RANGE_RANKING = ("DISTANCE_SENSOR", "RANGEFINDER")
@@ -172,27 +166,6 @@ class ImuItem(NamedTuple):
     name: str  # the message it came in
 
 
-class BaroItem(NamedTuple):
-    """A static pressure on the vehicle clock, before the baro reference is known."""
-
-    t_us: int
-    recv_s: float
-    boot: int
-    p_pa: float
-
-
-class GnssItem(NamedTuple):
-    """A GNSS altitude on the vehicle clock, before the GNSS reference is known."""
-
-    t_us: int
-    recv_s: float
-    boot: int
-    alt_m: float  # MSL or above the ellipsoid (ingest.gnss_altitude)
-    sigma_m: Optional[float]
-    fix: int
-    sats: int
-
-
 class RangeItem(NamedTuple):
     """A rangefinder message on the vehicle clock, before its checks."""
 
@@ -212,32 +185,6 @@ class AutopilotItem(NamedTuple):
     alt_msl: Optional[float]  # GLOBAL_POSITION_INT alt (None without a position; LOCAL_POSITION_NED: None)
     local_up: float  # above its home (relative_alt) or its EKF origin (-z)
     vel_up: float
-
-
-class _Anchor(NamedTuple):
-    """The autopilot's reference point: where its origin is (``home``,
-    ``autopilot_home``, ``ekf_origin``), its altitude MSL, and the stream
-    of heights above it."""
-
-    origin: str
-    alt_msl_m: float
-    rel_kind: str  # GLOBAL_POSITION_INT or LOCAL_POSITION_NED
-
-
-class _HomePosition(NamedTuple):
-    """The first HOME_POSITION: when (vehicle clock, boot) and its altitude MSL."""
-
-    t_us: int
-    boot: int
-    alt_msl_m: float
-
-
-class _RelHeight(NamedTuple):
-    """The autopilot's height above its reference point at a vehicle time, and its vertical speed."""
-
-    t_us: int
-    height_m: float
-    vel_up_mps: float
 
 
 class _RangeReading(NamedTuple):
@@ -304,27 +251,11 @@ class Normaliser:
         self.imu_sel = SourceSelector(IMU_RANKING, cfg.imu_source, cfg.source_select_s)
         self.range_sel = SourceSelector(RANGE_RANKING, cfg.range_source, cfg.source_select_s)
         self.ap_sel = SourceSelector(AUTOPILOT_RANKING, cfg.autopilot_source, cfg.source_select_s)
-        self.baro_ref = ReferenceResolver(
-            "baro", cfg.baro_reference, _item_t, _mean_pressure, self._baro_anchored
-        )
-        self.gnss_ref = ReferenceResolver(
-            "gnss", cfg.gnss_reference, _item_t, _mean_alt, self._gnss_anchored
-        )
-        self._anchor: Optional[_Anchor] = None  # the autopilot's reference point
-        self._home_pos: Optional[_HomePosition] = None  # the first HOME_POSITION
-        # the reference point as it moves with the autopilot's home (alt MSL), and what moved it last
-        self._point_msl: Optional[float] = None
-        self._home_last: dict = {}  # origin ("home", "autopilot_home") -> the last home altitude it gave
-        self._gpi_home_cands: List[float] = []  # a moved GLOBAL_POSITION_INT home, not yet confirmed
-        # the autopilot's height above its home / EKF origin, this boot, while the baro reference is open
-        self._rel_hist: dict[str, List[_RelHeight]] = {"GLOBAL_POSITION_INT": [], "LOCAL_POSITION_NED": []}
-        self._wait_said: set = set()
+        self.refs = HeightReferences(cfg, self.clock, lambda: self._last_recv)
         self._imu_out = False  # an IMU sample of this boot went out
         self._pre_imu: List[object] = []  # measurements waiting for it
         self._last_recv: Optional[float] = None
         self._link_lost = False
-        self._geoid_sep_m: Optional[float] = None
-        self._ekf_origin_msl_m: Optional[float] = None
         self._ap_held: Deque[AutopilotItem] = deque()
         self._ap_mode: Optional[str] = None
         self._gnss_wait_us = int(cfg.gnss_reference.home_wait_s * 1e6)
@@ -566,10 +497,7 @@ class Normaliser:
             for item in sel.decide():
                 fn(item)
         self._resolve_attitude(flush=True)
-        origin, items = self.baro_ref.finish()
-        self._baro_released(origin, items)
-        origin, items = self.gnss_ref.finish()
-        self._gnss_released(origin, items)
+        self._on_refs(self.refs.settle())
         self._ap_release(final=True)
         self._imu_out = True
         self._merge_gate()
@@ -579,8 +507,7 @@ class Normaliser:
         last, boot = self.time.new_boot(t_us, recv_s)
         self.att.reset()
         self._range_run = None
-        for hist in self._rel_hist.values():
-            hist.clear()
+        self.refs.new_boot()
         self._imu_out = False
         self.stats.reboots += 1
         self._emit(Reboot(t_us=t_us, recv_s=recv_s, boot=boot, last_t_us=last if last is not None else 0))
@@ -691,163 +618,14 @@ class Normaliser:
         if run is not None:
             run.p_min = p_pa if run.p_min is None else min(run.p_min, p_pa)
             run.p_max = p_pa if run.p_max is None else max(run.p_max, p_pa)
-        item = BaroItem(t_us, recv_s, self.clock.boot, p_pa)
-        origin, items = self.baro_ref.push(item)
-        self._baro_released(origin, items)
-        if self.baro_ref.value is None:
-            self._say_waiting(self.baro_ref, recv_s)
-
-    def _baro_anchored(self, held, final):
-        """The pressure at the autopilot's reference point: each baro sample moved
-        down by the autopilot's height above that point at the same moment."""
-        a = self._anchor
-        if a is None or not held:
-            return None
-        origin, rel_kind = a.origin, a.rel_kind
-        win = min(self.baro_ref.window_us, ANCHOR_WINDOW_US)
-        vals = []
-        t0 = b0 = None
-        complete = final
-        for t_us, _r, boot, p in held:  # BaroItem
-            if t0 is not None and (t_us - t0 >= win or boot != b0):
-                complete = True
-                break
-            rel = self._rel_at(t_us, boot, rel_kind)
-            if rel is None:
-                continue
-            if t0 is None:
-                t0, b0 = t_us, boot
-            vals.append(p / pressure_at_height_pa(rel, 1.0))  # p was measured rel above the point
-        if vals:
-            return (sum(vals) / len(vals), origin) if complete else None
-        if origin == "home" and self._home_pos is not None:
-            # HOME_POSITION and no height above it: home is where the vehicle was when it was set
-            v = self._baro_at_home(held, final)
-            if v is not None:
-                return v, origin
-        return None
-
-    def _baro_at_home(self, held, final) -> Optional[float]:
-        """Only once no height above home came for ``startup_window_s`` after HOME_POSITION
-        (a link without GLOBAL_POSITION_INT): the pressure around it."""
-        th, bh = self._home_pos.t_us, self._home_pos.boot
-        w = self.baro_ref.window_us
-        after = [it for it in held if (it.boot == bh and it.t_us > th) or it.boot > bh]
-        if not final and (not after or after[-1].boot == bh and after[-1].t_us - th < w):
-            return None  # a GLOBAL_POSITION_INT may still come
-        before = [it for it in held if it.boot == bh and th - w <= it.t_us <= th]
-        if before:
-            return _mean_pressure(before)
-        if not after:
-            return None
-        t0 = after[0].t_us
-        return _mean_pressure([it for it in after if it.t_us - t0 <= w and it.boot == after[0].boot])
-
-    def _rel_at(self, t_us: int, boot: int, kind: str) -> Optional[float]:
-        """The autopilot's height above its reference point at ``t_us`` (None: none within 1 s)."""
-        if boot != self.clock.boot:
-            return None
-        hist = self._rel_hist[kind]
-        i = bisect.bisect_left(hist, (t_us,))
-        best = None
-        for j in (i - 1, i):
-            if 0 <= j < len(hist):
-                d = abs(hist[j].t_us - t_us)
-                if d <= REL_ALT_MAX_AGE_US and (best is None or d < best[0]):
-                    best = (d, hist[j])
-        if best is None:
-            return None
-        tr, rel_m, vel_up = best[1]  # _RelHeight
-        return rel_m + vel_up * (t_us - tr) * 1e-6 if _finite(vel_up) else rel_m
-
-    def _note_rel(self, kind: str, t_us: int, rel_m: float, vel_up: float) -> None:
-        if self.baro_ref.value is not None or not _finite(rel_m):
-            return
-        hist = self._rel_hist[kind]
-        if len(hist) >= REL_HIST_MAX:
-            del hist[: REL_HIST_MAX // 2]
-        bisect.insort(hist, _RelHeight(t_us, rel_m, vel_up))
-
-    def _set_anchor(self, origin: str, alt_msl_m: float, rel_kind: str) -> None:
-        """The autopilot's reference point is known: fix what waits for it (first one wins)."""
-        if self._anchor is not None:
-            return
-        self._anchor = _Anchor(origin, alt_msl_m, rel_kind)
-        self._point_msl = alt_msl_m
-        self._retry_references()
-
-    def _home_seen(self, origin: str, alt_msl_m: float) -> None:
-        """A home altitude from the autopilot after the reference point was fixed: a move
-        when this source's home changed and is away from the point (see the module docstring)."""
-        if not self.cfg.follow_home or self._anchor is None:
-            return
-        tol = self.cfg.home_move_min_m
-        last = self._home_last.get(origin)
-        self._home_last[origin] = alt_msl_m
-        if last is not None and abs(alt_msl_m - last) <= tol:
-            return  # the same home again
-        if abs(alt_msl_m - self._point_msl) <= tol:
-            return
-        shift = alt_msl_m - self._point_msl
-        self._point_msl = alt_msl_m
-        t_us = self.clock.last_t_us if self.clock.last_t_us is not None else 0
-        self.stats.reference_moves += 1
-        self._emit(ReferenceMoved(t_us=t_us, recv_s=self._last_recv or 0.0, boot=self.clock.boot,
-                                  alt_ref_msl_m=alt_msl_m, shift_m=shift, offset_m=alt_msl_m - self._anchor.alt_msl_m,
-                                  origin=origin))
-
-    def _gpi_home(self, home_msl_m: float) -> None:
-        """GLOBAL_POSITION_INT's home, followed only on a link without HOME_POSITION and only
-        once ``HOME_CONFIRM_N`` messages in a row show the same moved value."""
-        if self._home_pos is not None:
-            return  # HOME_POSITION says where home is
-        last = self._home_last.get("autopilot_home", self._point_msl)
-        tol = self.cfg.home_move_min_m
-        cands = self._gpi_home_cands
-        if last is None or abs(home_msl_m - last) <= tol:
-            cands.clear()
-            return
-        if cands and abs(home_msl_m - cands[0]) > tol:
-            cands.clear()
-        cands.append(home_msl_m)
-        if len(cands) >= HOME_CONFIRM_N:
-            cands.clear()
-            self._home_seen("autopilot_home", home_msl_m)
-
-    def _retry_references(self) -> None:
-        if self.baro_ref.value is None:
-            self._baro_released(*self.baro_ref.retry())
-        if self.gnss_ref.value is None:
-            self._gnss_released(*self.gnss_ref.retry())
-
-    def _say_waiting(self, ref: ReferenceResolver, recv_s: float) -> None:
-        if ref.kind in self._wait_said or ref.cfg.source != "home" or ref.held_span_us() < WAIT_NOTICE_US:
-            return
-        self._wait_said.add(ref.kind)
-        what = "baro" if ref.kind == "baro" else "GNSS"
-        self._emit(Notice(recv_s, "waiting_reference",
-                          f"waiting for HOME_POSITION or GLOBAL_POSITION_INT to fix the {what} height reference "
-                          f"(at most {ref.cfg.home_wait_s:g} s, then the start-up mean)"))
-
-    def _baro_released(self, origin, items) -> None:
-        if not items and origin is None:
-            return
-        p_ref = self.baro_ref.value
-        if origin is not None:
-            first = items[0] if items else None
-            alt = self._anchor.alt_msl_m if origin in ANCHORED and self._anchor is not None else None
-            self._reference_event("baro", p_ref, alt, origin, first)
-        inst = self.cfg.baro_instance
-        for t_us, recv_s, boot, p_pa in items:
-            h = height_from_pressure_m(p_pa, p_ref)
-            self._guarded("baro", t_us, recv_s, boot, BaroHeight(t_us, recv_s, boot, h, p_pa, inst))
+        self._on_refs(self.refs.pressure(BaroItem(t_us, recv_s, self.clock.boot, p_pa)))
 
     # ------------------------------------------------------------------ GNSS
 
     def _gps_raw_int(self, f, recv_s, compid) -> None:
         fix = f["fix_type"]
         if f["alt_ellipsoid"] != 0 and fix >= self.cfg.min_fix_type:
-            self._geoid_sep_m = (f["alt_ellipsoid"] - f["alt"]) / 1000.0
+            self.refs.geoid_sep_m = (f["alt_ellipsoid"] - f["alt"]) / 1000.0
         if fix < self.cfg.min_fix_type:
             self.stats.filtered["gnss_no_fix"] += 1
             return
@@ -868,61 +646,17 @@ class Normaliser:
 
     def _gnss_at(self, payload, t_us, recv_s) -> None:
         alt_m, sigma_m, fix, sats = payload
-        item = GnssItem(t_us, recv_s, self.clock.boot, alt_m, sigma_m, fix, sats)
-        origin, items = self.gnss_ref.push(item)
-        self._gnss_released(origin, items)
-        if self.gnss_ref.value is None:
-            self._say_waiting(self.gnss_ref, recv_s)
-
-    def _gnss_anchored(self, held, final):
-        a = self._anchor
-        if a is None:
-            return None
-        origin, alt_msl = a.origin, a.alt_msl_m
-        if self.cfg.gnss_altitude == "msl":
-            return alt_msl, origin
-        if self._geoid_sep_m is None:
-            return None
-        return alt_msl + self._geoid_sep_m, origin
+        self._on_refs(self.refs.gnss_altitude(GnssItem(t_us, recv_s, self.clock.boot, alt_m, sigma_m, fix, sats)))
 
     def gnss_ref_msl_m(self) -> Optional[float]:
-        v = self.gnss_ref.value
-        if v is None:
-            return None
-        if self.cfg.gnss_altitude == "msl":
-            return v
-        return v - self._geoid_sep_m if self._geoid_sep_m is not None else None
-
-    def _gnss_released(self, origin, items) -> None:
-        if origin is not None:
-            self._reference_event("gnss", self.gnss_ref.value, self.gnss_ref_msl_m(), origin, items[0] if items else None)
-        ref = self.gnss_ref.value
-        for t_us, recv_s, boot, alt_m, sigma_m, fix, sats in items:
-            self._guarded("gnss", t_us, recv_s, boot, GnssHeight(t_us, recv_s, boot, alt_m - ref, alt_m, sigma_m, fix, sats))
-        if origin is not None:
-            self._ap_release(final=False)
+        """The GNSS reference as an altitude MSL (None: not known yet)."""
+        return self.refs.gnss_ref_msl_m()
 
     def _home_position(self, f, recv_s, compid) -> None:
         alt_m = f["altitude"] / 1000.0  # mm MSL
         if not _finite(alt_m):
             return
-        if self._home_pos is None:
-            t_us = self.clock.last_t_us if self.clock.last_t_us is not None else 0
-            self._home_pos = _HomePosition(t_us, self.clock.boot, alt_m)
-        if self._anchor is None:
-            self._home_last["home"] = alt_m
-            self._set_anchor("home", alt_m, "GLOBAL_POSITION_INT")
-        else:
-            self._home_seen("home", alt_m)
-
-    def _reference_event(self, kind, value, alt_msl, origin, item) -> None:
-        if item:
-            t_us, recv_s, boot = item.t_us, item.recv_s, item.boot
-        else:  # fixed before any sample needed it (from the autopilot's home)
-            t_us = self.clock.last_t_us if self.clock.last_t_us is not None else 0
-            recv_s, boot = (self._last_recv or 0.0), self.clock.boot
-        self.stats.references[kind] = ReferenceRecord(value, origin, alt_msl)
-        self._emit(ReferenceSet(t_us=t_us, recv_s=recv_s, boot=boot, kind=kind, value=value, alt_ref_msl_m=alt_msl, origin=origin))
+        self._on_refs(self.refs.home_position(alt_m))
 
     # ------------------------------------------------------------------ rangefinder
 
@@ -1028,17 +762,8 @@ class Normaliser:
         # (before arming old ArduPilot reports relative_alt == alt: home at 0)
         if (f["lat"] != 0 or f["lon"] != 0) and abs(f["alt"] - f["relative_alt"]) >= HOME_UNSET_MM:
             home_m = (f["alt"] - f["relative_alt"]) / 1000.0
-            if self._anchor is not None:
-                # above the point the references are fixed at, whatever home the autopilot has now
-                rel_m = f["alt"] / 1000.0 - self._anchor.alt_msl_m
-            self._note_rel("GLOBAL_POSITION_INT", t_us, rel_m, vel_up)
-            if self._anchor is None:
-                self._home_last["autopilot_home"] = home_m
-                self._set_anchor("autopilot_home", home_m, "GLOBAL_POSITION_INT")
-            else:
-                self._gpi_home(home_m)
-                if self.baro_ref.value is None and self.baro_ref.held:
-                    self._baro_released(*self.baro_ref.retry())
+            rel_m, out = self.refs.autopilot_home(t_us, f["alt"] / 1000.0, home_m, rel_m, vel_up)
+            self._on_refs(out)
         # alt: mm MSL, none without a position (ArduPilot then sends 0 or its uncorrected baro altitude)
         alt_msl = f["alt"] / 1000.0 if f["lat"] != 0 or f["lon"] != 0 else None
         item = AutopilotItem(t_us, recv_s, self.clock.boot, alt_msl, rel_m, vel_up)
@@ -1057,11 +782,7 @@ class Normaliser:
         up_m = -f["z"]  # z is down, m, above the EKF origin
         vz = f["vz"]
         vel_up = -vz if _finite(vz) else math.nan
-        self._note_rel("LOCAL_POSITION_NED", t_us, up_m, vel_up)
-        if self._anchor is None and self._ekf_origin_msl_m is not None:
-            self._set_anchor("ekf_origin", self._ekf_origin_msl_m, "LOCAL_POSITION_NED")
-        elif self._anchor is not None and self.baro_ref.value is None and self.baro_ref.held:
-            self._baro_released(*self.baro_ref.retry())
+        self._on_refs(self.refs.local_position(t_us, up_m, vel_up))
         item = AutopilotItem(t_us, recv_s, self.clock.boot, None, up_m, vel_up)
         for it in self.ap_sel.offer("LOCAL_POSITION_NED", item):
             self._ap_selected(it)
@@ -1070,9 +791,7 @@ class Normaliser:
         alt_m = f["altitude"] / 1000.0  # mm MSL
         if not _finite(alt_m):
             return
-        self._ekf_origin_msl_m = alt_m
-        if self._anchor is None and self._rel_hist["LOCAL_POSITION_NED"]:
-            self._set_anchor("ekf_origin", alt_m, "LOCAL_POSITION_NED")
+        self._on_refs(self.refs.ekf_origin(alt_m))
 
     def _noted(self, sel: SourceSelector, name: str) -> list:
         """A message of source ``name`` arrived: the items held for the source
@@ -1091,7 +810,7 @@ class Normaliser:
         src = self.ap_sel.chosen
         if self._ap_mode is None:
             ref_msl = self.gnss_ref_msl_m()
-            if ref_msl is not None and (src == "GLOBAL_POSITION_INT" or self._ekf_origin_msl_m is not None):
+            if ref_msl is not None and (src == "GLOBAL_POSITION_INT" or self.refs.ekf_origin_msl_m is not None):
                 self._ap_mode = "gnss_reference"
             elif final or held[-1].boot != held[0].boot or held[-1].t_us - held[0].t_us >= self._gnss_wait_us:
                 self._ap_mode = "autopilot_home" if src == "GLOBAL_POSITION_INT" else "ekf_origin"
@@ -1108,7 +827,7 @@ class Normaliser:
                         continue
                     h = alt_msl - ref_msl
                 else:
-                    h = local_up + self._ekf_origin_msl_m - ref_msl
+                    h = local_up + self.refs.ekf_origin_msl_m - ref_msl
             else:
                 h = local_up
             self._guarded("autopilot", t_us, recv_s, boot, AutopilotHeight(t_us, recv_s, boot, h, src, vel_up))
@@ -1164,6 +883,23 @@ class Normaliser:
         merged.extend(held[i:])
         self._out = merged
 
+    def _on_refs(self, out: list) -> None:
+        """Pass on what the reference stage releases (see :mod:`.heightref`)."""
+        for x in out:
+            kind = type(x)
+            if kind is BaroHeight:
+                self._guarded("baro", x.t_us, x.recv_s, x.boot, x)
+            elif kind is GnssHeight:
+                self._guarded("gnss", x.t_us, x.recv_s, x.boot, x)
+            elif x is GNSS_FIXED:
+                self._ap_release(final=False)
+            else:
+                if kind is ReferenceSet:
+                    self.stats.references[x.kind] = ReferenceRecord(x.value, x.origin, x.alt_ref_msl_m)
+                elif kind is ReferenceMoved:
+                    self.stats.reference_moves += 1
+                self._emit(x)
+
     def _guarded(self, kind: str, t_us: int, recv_s: float, boot: int, sample) -> None:
         if self._admit(kind, t_us, recv_s, boot):
             self._yield(kind, sample)
@@ -1192,9 +928,6 @@ class Normaliser:
         st.duration_s = self.clock.total_duration_us / 1e6
 
 
-ANCHORED = ("home", "autopilot_home", "ekf_origin")
-
-
 def describe_system(mav_type: int, autopilot: int) -> str:
     """``quadrotor, ArduPilot``: a HEARTBEAT's type and autopilot in words."""
     def word(enum: str, value: int, prefix: str) -> str:
@@ -1210,16 +943,3 @@ def describe_system(mav_type: int, autopilot: int) -> str:
 
 def _sample_t(s) -> int:
     return s.t_us
-
-
-def _item_t(item):
-    """``(t_us, boot)`` of a held baro or GNSS item."""
-    return item.t_us, item.boot
-
-
-def _mean_pressure(items: List[BaroItem]) -> float:
-    return sum(it.p_pa for it in items) / len(items)
-
-
-def _mean_alt(items: List[GnssItem]) -> float:
-    return sum(it.alt_m for it in items) / len(items)
