@@ -305,7 +305,9 @@ class Normaliser:
     def feed(self, recv_s: float, msgid: int, sysid: int, compid: int, payload: bytes) -> List[object]:
         """One frame of the link; returns the samples and events it releases."""
         self._frame(recv_s, msgid, sysid, compid, payload)
-        return self._drain()
+        out = self._out  # _drain(), inline: once per frame
+        self._out = []
+        return out
 
     def _drain(self) -> List[object]:
         out, self._out = self._out, []
