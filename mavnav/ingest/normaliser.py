@@ -93,7 +93,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
-from typing import Deque, List, NamedTuple, Optional
+from typing import Deque, List, NamedTuple, Optional, Sequence
 
 from ..atmosphere import height_from_pressure_m
 from ..config import IngestConfig
@@ -220,6 +220,9 @@ class _RangeRun:
     boot: int
 
 
+_NOTHING: tuple = ()  # what a call that releases nothing returns
+
+
 def _finite(*vals) -> bool:
     for v in vals:
         if not math.isfinite(v):
@@ -302,15 +305,20 @@ class Normaliser:
 
     # ------------------------------------------------------------------ input
 
-    def feed(self, recv_s: float, msgid: int, sysid: int, compid: int, payload: bytes) -> List[object]:
+    def feed(self, recv_s: float, msgid: int, sysid: int, compid: int, payload: bytes) -> Sequence[object]:
         """One frame of the link; returns the samples and events it releases."""
         self._frame(recv_s, msgid, sysid, compid, payload)
         out = self._out  # _drain(), inline: once per frame
+        if not out:
+            return _NOTHING  # most frames release nothing: no new list for them
         self._out = []
         return out
 
-    def _drain(self) -> List[object]:
-        out, self._out = self._out, []
+    def _drain(self) -> Sequence[object]:
+        out = self._out
+        if not out:
+            return _NOTHING
+        self._out = []
         return out
 
     def _frame(self, recv_s: float, msgid: int, sysid: int, compid: int, payload: bytes) -> None:
@@ -350,14 +358,14 @@ class Normaliser:
         if self._pre_imu and self._imu_out:
             self._merge_gate()
 
-    def problem(self, rejected: Rejected) -> List[object]:
+    def problem(self, rejected: Rejected) -> Sequence[object]:
         """A frame-level problem reported by the reader (garbage, CRC, unknown id...): returns it."""
         self.stats.rejected[rejected.kind] += 1
         self.stats.events["Rejected"] += 1
         self._out.append(rejected)
         return self._drain()
 
-    def tick(self, now_s: float) -> List[object]:
+    def tick(self, now_s: float) -> Sequence[object]:
         """Live links: declare the link lost after ``link_timeout_s`` of silence, and say
         what is awaited while no heartbeat of the vehicle came. Returns those events."""
         if self.autopilot is None:
@@ -369,7 +377,7 @@ class Normaliser:
             self._emit(LinkLost(recv_s=now_s, silent_s=now_s - last))
         return self._drain()
 
-    def finish(self) -> List[object]:
+    def finish(self) -> Sequence[object]:
         """End of stream: decide what is pending and release everything held (returned)."""
         if self.sysid is None and self._preselect:
             self.stats.filtered["no_vehicle_heartbeat"] += len(self._preselect)
