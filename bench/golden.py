@@ -18,7 +18,9 @@ repository's ``sitl_logs/*.tlog``; ``--more`` adds
 copied.
 
 Nothing is normalised: the outputs hold the log's absolute path (the same
-in both runs) and no wall-clock time. ``compare`` exits 1 when a file
+in both runs) and no wall-clock time. The code audited is the ``mavnav``
+that PYTHONPATH (else the installation) names, said on stderr: each audit
+runs in the output directory, so that no working directory shadows it. ``compare`` exits 1 when a file
 differs or is missing on one side.
 """
 
@@ -56,13 +58,19 @@ def output_stem(path: Path) -> str:
 
 
 def run(outdir: Path, more: bool) -> int:
+    outdir = outdir.resolve()
     outdir.mkdir(parents=True, exist_ok=True)
     logs = log_files(more)
+    probe = subprocess.run([sys.executable, "-c", "import mavnav; print(mavnav.__file__)"], capture_output=True,
+                           text=True, env=os.environ.copy(), cwd=outdir)
+    print(f"mavnav from {probe.stdout.strip()}", file=sys.stderr)
     for i, log in enumerate(logs, 1):
         stem = outdir / output_stem(log)
         cmd = [sys.executable, "-m", "mavnav.cli", "audit", str(log),
                "--json", f"{stem}.json", "--csv", f"{stem}.csv"]
-        proc = subprocess.run(cmd, capture_output=True, env=os.environ.copy())
+        # run from the output directory: a working directory holding a mavnav
+        # package would shadow the one PYTHONPATH (or the installation) names
+        proc = subprocess.run(cmd, capture_output=True, env=os.environ.copy(), cwd=outdir)
         Path(f"{stem}.stdout").write_bytes(proc.stdout)
         Path(f"{stem}.stderr").write_bytes(proc.stderr)
         Path(f"{stem}.rc").write_text(f"{proc.returncode}\n")
