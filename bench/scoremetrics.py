@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Iterable, List, Optional, Sequence, Tuple
+from typing import Iterable, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -178,13 +178,6 @@ def icao_band(rms_m: float) -> str:
         if rms_m <= limit:
             return name
     return "none"
-
-
-ICAO_BANDS: List[Tuple[str, float, float]] = [
-    ("CAT I", 1.5, 2.0),
-    ("CAT II", 0.7, 0.85),
-    ("CAT III", 0.2, 0.3),
-]
 
 
 # ---------------------------------------------------------------- one run of a family

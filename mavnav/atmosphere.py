@@ -6,8 +6,6 @@ point, so ``height_ref_m(p_ref, p_ref) == 0``. Pure functions, SI units.
 
 from __future__ import annotations
 
-import math
-
 from .constants import G0_MPS2
 
 T0_K = 288.15  # ISA sea-level temperature
@@ -38,7 +36,3 @@ def isa_pressure_at_msl_alt_pa(alt_msl_m: float) -> float:
     """Standard-day static pressure at an altitude above mean sea level."""
     return pressure_at_height_pa(alt_msl_m, P0_PA)
 
-
-def _self_check() -> None:  # pragma: no cover - sanity at import would be wasteful
-    assert abs(height_from_pressure_m(pressure_at_height_pa(123.4, 95000.0), 95000.0) - 123.4) < 1e-9
-    assert math.isclose(isa_pressure_at_msl_alt_pa(0.0), P0_PA)

@@ -56,7 +56,6 @@ class AuditSink(Sink):
         self.n_err = 0
         self.max_abs_err = 0.0
         self.input_counts: Counter = Counter()
-        self.input_span: dict[str, list] = {}
 
     def sample(self, s) -> None:
         kind = INPUT_KINDS.get(type(s))

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Literal, Optional, Union
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from .constants import G0_MPS2
 from .errors import ConfigError
@@ -391,13 +391,51 @@ class RequestRatesConfig(_Section):
 
 
 class EmitSection(_Section):
-    """What ``--emit`` does beyond the command-line options."""
+    """What ``--emit`` sends, and as whom (mavnav/cli/emit_options.py). The
+    keys below ``command_attempts`` each have a command-line flag, which wins
+    when given. Only the flags turn the output on: ``--emit CONNECTION``
+    (nothing is transmitted without it) and ``--allow-commands`` (no command
+    is sent without it)."""
 
     request: RequestRatesConfig = RequestRatesConfig()
     # a COMMAND_ACK is awaited this long (wall clock: the vehicle answers in real
     # time) before the command is sent again, command_attempts times in all
     command_timeout_s: float = Field(1.0, gt=0)
     command_attempts: int = Field(3, ge=1)
+    sysid: int = Field(1, ge=1, le=255)  # --emit-sysid: the system id mavnav sends as
+    compid: int = Field(191, ge=1, le=255)  # --emit-compid (1, the autopilot's, is refused)
+    altitude_rate_hz: float = Field(5.0, gt=0, le=100)  # --altitude-rate, on vehicle time
+    statustext_interval_s: float = Field(1.0, ge=0, allow_inf_nan=False)  # --statustext-interval
+    debug_values: bool = False  # --emit-debug: residuals and test statistics as NAMED_VALUE_FLOAT
+    fusable: bool = False  # --emit-fusable: ODOMETRY for an autopilot to fuse
+    # --request-rate NAME:HZ (with --allow-commands): instead of the rates `request` derives
+    message_rates: tuple[str, ...] = ()
+    signing_key: Optional[str] = None  # --signing-key FILE
+    signing_link_id: int = Field(0, ge=0, le=255)  # --signing-link-id
+
+    @field_validator("compid")
+    @classmethod
+    def _not_the_autopilot(cls, v: int) -> int:
+        if v == 1:
+            raise ValueError("1 is the autopilot's component id; mavnav never impersonates it (use e.g. 191)")
+        return v
+
+
+# ---------------------------------------------------------------- the viewer
+
+
+class ViewerSection(_Section):
+    """The Rerun viewer of run, replay and audit (mavnav/cli/viewer_options.py).
+    Each key has a command-line flag, which wins when given."""
+
+    viewer: Literal["spawn", "web", "none"] = "none"  # --viewer
+    connect: Optional[str] = None  # --connect URL: also stream to a running viewer
+    rrd: Optional[str] = None  # --rrd FILE: also save the recording
+    web_port: int = Field(9090, ge=0, le=65535)  # --web-port (0: any free port)
+    grpc_port: int = Field(9876, ge=0, le=65535)  # --grpc-port (0: any free port)
+    bind: str = "127.0.0.1"  # --viewer-bind
+    window_s: float = Field(30.0, gt=0)  # --viewer-window: live runs, seconds of vehicle time shown
+    hold: bool = True  # --viewer-hold/--no-viewer-hold: the web viewer serves on after the run
 
 
 class Config(_Section):
@@ -406,6 +444,28 @@ class Config(_Section):
     ingest: IngestConfig = IngestConfig()
     monitor: MonitorConfig = MonitorConfig()
     emit: EmitSection = EmitSection()
+    viewer: ViewerSection = ViewerSection()
+
+
+#: The keys that only say how results are shown or sent, not what they are
+#: (left out of the fleet cache's key: ``mavnav.fleet.task.config_json``).
+OUTPUT_ONLY_KEYS = {
+    "viewer": True,
+    "emit": {"sysid", "compid", "altitude_rate_hz", "statustext_interval_s", "debug_values", "fusable",
+             "message_rates", "signing_key", "signing_link_id"},
+}
+
+
+def with_overrides(section: _Section, update: dict, origin: str) -> _Section:
+    """``section`` with the keys in ``update`` replaced (the command-line flags
+    given), validated as the configuration is: a bad value is a one-line
+    ConfigError naming the key."""
+    if not update:
+        return section
+    try:
+        return type(section).model_validate({**section.model_dump(), **update})
+    except ValidationError as exc:
+        raise validation_error(exc, origin) from None
 
 
 # ---------------------------------------------------------------- loading

@@ -20,7 +20,6 @@ from typing import Literal, Optional
 
 State = Literal["nominal", "caution", "unavailable", "alarm"]
 STATES: tuple[State, ...] = ("nominal", "caution", "unavailable", "alarm")
-SEVERITY = {s: i for i, s in enumerate(STATES)}
 
 Source = Literal["gnss", "rangefinder", "baro_ins", "input"]
 SOURCES: tuple[Source, ...] = ("gnss", "rangefinder", "baro_ins", "input")

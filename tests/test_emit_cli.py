@@ -8,7 +8,8 @@ import click
 import pytest
 from click.testing import CliRunner
 
-from mavnav.cli.emit_options import EMIT_OPTION_KEYS, emit_options, make_emit_sinks, split_emit_options
+from mavnav.cli.emit_options import emit_options, emit_sinks, make_emit_sinks
+from mavnav.config import Config
 from mavnav.errors import ConfigError
 from mavnav.report import RunSummary
 from mavnav.sinks.mavlink_out import MavlinkOutSink
@@ -21,11 +22,10 @@ def _command(store: dict, **factory_kw):
     @click.command()
     @click.option("--other", default="x")
     @emit_options
-    def cmd(other, **kw):
-        emit, rest = split_emit_options(kw)
-        store["rest"] = dict(rest, other=other)
-        store["emit"] = emit
-        store["sinks"] = make_emit_sinks(**emit, **factory_kw)
+    def cmd(other, emit_flags):
+        store["rest"] = {"other": other}
+        store["emit"] = emit_flags
+        store["sinks"] = emit_sinks(Config(), emit_flags, **factory_kw)
 
     return cmd
 
@@ -47,8 +47,8 @@ def test_options_are_listed_in_help():
 def test_no_emit_no_sink():
     res, store = invoke([])
     assert res.exit_code == 0, res.output
-    assert store["emit"]["allow_commands"] is False
-    assert store["sinks"] == [] and set(store["emit"]) == set(EMIT_OPTION_KEYS) and store["rest"] == {"other": "x"}
+    assert store["emit"] == {}  # only the flags given reach the command
+    assert store["sinks"] == [] and store["rest"] == {"other": "x"}
 
 
 @pytest.mark.parametrize("flag", [["--allow-commands"], ["--emit-debug"], ["--emit-fusable"],

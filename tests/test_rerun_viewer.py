@@ -22,6 +22,8 @@ from mavnav.cli.viewer_options import (
     make_viewer_sinks,
     rerun_executable,
     viewer_options,
+    viewer_settings,
+    viewer_sinks,
     web_page_url,
 )
 from mavnav.config import Config
@@ -207,16 +209,19 @@ def test_viewer_options_decorator_parses_and_feeds_the_factory(tmp_path):
 
     @click.command()
     @viewer_options
-    def cmd(**kw):
-        got.update(kw)
-        got["sinks"] = make_viewer_sinks(live=False, **kw)
+    def cmd(viewer_flags):
+        got["flags"] = viewer_flags
+        got["viewer"] = v = viewer_settings(Config(), viewer_flags)
+        got["sinks"] = viewer_sinks(v, live=False)
 
     runner = CliRunner()
     res = runner.invoke(cmd, [])
     assert res.exit_code == 0, res.output
-    assert got["viewer"] == "none" and got["connect"] is None and got["rrd"] is None
-    assert got["web_port"] == 9090 and got["grpc_port"] == 9876 and got["viewer_bind"] == "127.0.0.1"
-    assert got["viewer_hold"] is True and got["viewer_window"] == 30.0
+    v = got["viewer"]
+    assert got["flags"] == {}  # only the flags given reach the command
+    assert v.viewer == "none" and v.connect is None and v.rrd is None
+    assert v.web_port == 9090 and v.grpc_port == 9876 and v.bind == "127.0.0.1"
+    assert v.hold is True and v.window_s == 30.0
     assert got["sinks"] == []
 
     rrd = tmp_path / "o.rrd"

@@ -12,8 +12,6 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
-from typing import Optional
-
 import click
 
 from ..errors import MavnavError
@@ -21,7 +19,7 @@ from ..fleet.cache import DEFAULT_CACHE_DIR
 from . import main
 from .honest import check_outputs, honest_audit_result
 from .run import common_options
-from .viewer_options import make_viewer_sinks, viewer_options
+from .viewer_options import viewer_options, viewer_settings, viewer_sinks
 
 _RANK = {"nominal": 0, "caution": 1, "alarm": 2}
 
@@ -45,7 +43,7 @@ def format_table(r: dict) -> str:
     lines.append("  overall: " + (", ".join(f"{k} {100 * v:.1f}%" for k, v in ov.items() if v > 0)
                                   or ("not applicable" if not r.get("height_integrity_applies", True) else "no epochs")))
     rms = r["fused_vs_autopilot_rms_m"]
-    lines.append(f"  fused vs autopilot height: " + (f"RMS {rms:.2f} m, max {r['fused_vs_autopilot_max_m']:.2f} m"
+    lines.append("  fused vs autopilot height: " + (f"RMS {rms:.2f} m, max {r['fused_vs_autopilot_max_m']:.2f} m"
                                                      if rms is not None else "no autopilot height"))
     alarms = r["alarms"]
     n_alarm = sum(a["state"] == "alarm" for a in alarms)
@@ -82,7 +80,7 @@ def format_table(r: dict) -> str:
 @common_options
 @viewer_options
 def audit_cmd(paths, json_path, fail_on, workers, scheduler, fleet_report, cache_dir, rerun, no_cache,
-              config_path, sysid, csv_path, inject, **viewer_kw) -> None:
+              config_path, sysid, csv_path, inject, viewer_flags) -> None:
     """Audit recorded tlogs (files or directories) without a viewer: alarms with
     times and sources, message rates and whether they support the
     time-to-alarm, channel availability, fused height against the
@@ -95,60 +93,26 @@ def audit_cmd(paths, json_path, fail_on, workers, scheduler, fleet_report, cache
     configuration, --sysid and the mavnav version and sources.
     """
     # the audit's own modules (the estimator, numba, scipy) load when it runs, not for --help
-    from ..audit import worst_state
     from ..config import load_config
-    from ..fleet.task import audit_one
-    from ..ingest import expand_log_paths
     from ..sim.faults import parse_faults
-    from ..sinks.csv_sink import CsvSink
 
     cfg = load_config(config_path)
+    viewer = viewer_settings(cfg, viewer_flags)
     faults = parse_faults(inject)  # a bad spec fails here, before any work
-    check_outputs({"--csv": csv_path, "--rrd": viewer_kw.get("rrd"), "--json": json_path},
+    check_outputs({"--csv": csv_path, "--rrd": viewer.rrd, "--json": json_path},
                   {"--fleet-report": fleet_report})
-    # results come back in the order of the arguments (a directory's logs
-    # sorted in its place); a missing path is reported in its place
-    slots: list = []
-    for p in paths:
-        if Path(p).exists():
-            slots += [f for f in expand_log_paths([p]) if f not in slots]
-        else:
-            slots.append({"path": str(p), "error": "no such file or directory"})
+    slots = _slots(paths)
     files = [x for x in slots if isinstance(x, Path)]
     missing = [x for x in slots if isinstance(x, dict)]
-    file_results: list[dict] = []
-    if not files and not missing:
-        raise MavnavError("no .tlog, .bin or .ulg files in " + ", ".join(paths))
-    in_process = csv_path or viewer_kw.get("rrd") or viewer_kw.get("connect") \
-        or viewer_kw.get("viewer") not in (None, "none")
-    fleet = workers > 1 or scheduler or fleet_report or cache_dir or rerun
-    if in_process and len(files) != 1:
-        raise MavnavError("--csv and the viewer options take exactly one file")
-    if in_process and fleet:
-        raise MavnavError("--csv and the viewer options audit one file in this process: "
-                          "not with --workers, --scheduler, --fleet-report, --cache-dir or --rerun")
+    fleet = bool(workers > 1 or scheduler or fleet_report or cache_dir or rerun)
+    _check_run_kind(paths, files, missing, _wants_in_process(csv_path, viewer), fleet)
     run = None
     if fleet:
-        from ..fleet import Progress, run_fleet
-
-        if fleet_report:
-            from ..fleet.report import _need
-
-            _need("pyarrow.parquet"), _need("matplotlib")  # fail now, not after the whole fleet
-        cache = None if no_cache else (cache_dir or DEFAULT_CACHE_DIR)
-        run = run_fleet(files, cfg, sysid=sysid, workers=workers, scheduler=scheduler, cache_dir=cache,
-                        rerun=rerun, progress=Progress(), faults=inject)
+        run = _audit_fleet(files, cfg, sysid=sysid, workers=workers, scheduler=scheduler, fleet_report=fleet_report,
+                           cache_dir=cache_dir, rerun=rerun, no_cache=no_cache, inject=inject)
         file_results = list(run.results)
     else:
-        show_bar = len(files) > 1 and sys.stderr.isatty()
-        with click.progressbar(files, label="auditing", file=sys.stderr, show_pos=True) if show_bar \
-                else _nullbar(files) as bar:
-            for f in bar:
-                extra = []
-                if csv_path:
-                    extra.append(CsvSink(csv_path))
-                extra += make_viewer_sinks(live=False, **viewer_kw)
-                file_results.append(audit_one(f, cfg, sysid=sysid, extra_sinks=extra, faults=faults))
+        file_results = _audit_here(files, cfg, sysid=sysid, csv_path=csv_path, faults=faults, viewer=viewer)
     it = iter(file_results)
     results: list[dict] = [x if isinstance(x, dict) else next(it) for x in slots]
     # --sysid with no data from that vehicle is an error; a tlog cut short says where
@@ -156,24 +120,101 @@ def audit_cmd(paths, json_path, fail_on, workers, scheduler, fleet_report, cache
     for r in results:
         click.echo(format_table(r))
     if json_path:
-        doc = json.dumps({"files": results}, indent=1, default=str)
-        if json_path == "-":
-            click.echo(doc)
-        else:
-            Path(json_path).write_text(doc, encoding="utf-8")
+        _write_json(results, json_path)
     if fleet_report:
-        from ..fleet.report import write_fleet_report
+        _write_fleet_report(results, fleet_report, run, workers=workers, scheduler=scheduler,
+                            config_path=config_path)
+    _finish(results, fail_on, run)
 
-        info = {"backend": run.backend, "workers": workers if not scheduler else f"Dask at {scheduler}",
-                "wall time": f"{run.elapsed_s:.1f} s", "config": config_path or "built-in defaults"}
-        written = write_fleet_report(results, fleet_report, run_info=info)
-        click.echo(f"fleet report: {written['report']}", err=True)
+
+def _slots(paths) -> list:
+    """The files to audit, in the order of the arguments (a directory's logs
+    sorted in its place), a missing path as an error result in its place."""
+    from ..ingest import expand_log_paths
+
+    slots: list = []
+    for p in paths:
+        if Path(p).exists():
+            slots += [f for f in expand_log_paths([p]) if f not in slots]
+        else:
+            slots.append({"path": str(p), "error": "no such file or directory"})
+    return slots
+
+
+def _wants_in_process(csv_path, viewer) -> bool:
+    """Whether an output (--csv, a viewer) needs the audit in this process."""
+    return bool(csv_path or viewer.rrd or viewer.connect or viewer.viewer != "none")
+
+
+def _check_run_kind(paths, files: list, missing: list, in_process: bool, fleet: bool) -> None:
+    """Refuse an empty run, and in-process outputs with several files or a fleet run."""
+    if not files and not missing:
+        raise MavnavError("no .tlog, .bin or .ulg files in " + ", ".join(paths))
+    if in_process and len(files) != 1:
+        raise MavnavError("--csv and the viewer options take exactly one file")
+    if in_process and fleet:
+        raise MavnavError("--csv and the viewer options audit one file in this process: "
+                          "not with --workers, --scheduler, --fleet-report, --cache-dir or --rerun")
+
+
+def _audit_fleet(files: list, cfg, *, sysid, workers, scheduler, fleet_report, cache_dir, rerun, no_cache,
+                 inject):
+    """Audit the files as a fleet run (process pool or Dask, with the cache)."""
+    from ..fleet import Progress, run_fleet
+
+    if fleet_report:
+        from ..fleet.report import _need
+
+        _need("pyarrow.parquet"), _need("matplotlib")  # fail now, not after the whole fleet
+    cache = None if no_cache else (cache_dir or DEFAULT_CACHE_DIR)
+    return run_fleet(files, cfg, sysid=sysid, workers=workers, scheduler=scheduler, cache_dir=cache,
+                     rerun=rerun, progress=Progress(), faults=inject)
+
+
+def _audit_here(files: list, cfg, *, sysid, csv_path, faults, viewer) -> list[dict]:
+    """Audit the files one by one in this process, with the CSV and viewer sinks."""
+    from ..fleet.task import audit_one
+    from ..sinks.csv_sink import CsvSink
+
+    results: list[dict] = []
+    show_bar = len(files) > 1 and sys.stderr.isatty()
+    with click.progressbar(files, label="auditing", file=sys.stderr, show_pos=True) if show_bar \
+            else _nullbar(files) as bar:
+        for f in bar:
+            extra = []
+            if csv_path:
+                extra.append(CsvSink(csv_path))
+            extra += viewer_sinks(viewer, live=False)
+            results.append(audit_one(f, cfg, sysid=sysid, extra_sinks=extra, faults=faults))
+    return results
+
+
+def _write_json(results: list[dict], json_path: str) -> None:
+    doc = json.dumps({"files": results}, indent=1, default=str)
+    if json_path == "-":
+        click.echo(doc)
+    else:
+        Path(json_path).write_text(doc, encoding="utf-8")
+
+
+def _write_fleet_report(results: list[dict], fleet_report, run, *, workers, scheduler, config_path) -> None:
+    from ..fleet.report import write_fleet_report
+
+    info = {"backend": run.backend, "workers": workers if not scheduler else f"Dask at {scheduler}",
+            "wall time": f"{run.elapsed_s:.1f} s", "config": config_path or "built-in defaults"}
+    written = write_fleet_report(results, fleet_report, run_info=info)
+    click.echo(f"fleet report: {written['report']}", err=True)
+
+
+def _finish(results: list[dict], fail_on, run) -> None:
+    """Say what was audited on stderr, and exit 2 (unreadable) or 1 (--fail-on met)."""
+    from ..audit import worst_state
+
     unreadable = [r for r in results if "error" in r]
     failed = [r for r in results if "error" not in r and fail_on and _RANK[worst_state(r)] >= _RANK[fail_on]]
     cached = f", {run.counts.skipped} from the cache" if run is not None else ""
-    click.echo(f"audited {len(results)} file(s): {len(unreadable)} unreadable{cached}, "
-               f"{len(failed)} reaching --fail-on {fail_on}" if fail_on else
-               f"audited {len(results)} file(s): {len(unreadable)} unreadable{cached}", err=True)
+    summary = f"audited {len(results)} file(s): {len(unreadable)} unreadable{cached}"
+    click.echo(f"{summary}, {len(failed)} reaching --fail-on {fail_on}" if fail_on else summary, err=True)
     if unreadable:
         sys.exit(2)
     if failed:

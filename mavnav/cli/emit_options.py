@@ -4,12 +4,15 @@ Use::
 
     @main.command("run")
     @emit_options
-    def run_cmd(..., **kwargs):
-        emit, rest = split_emit_options(kwargs)
-        sinks += make_emit_sinks(**emit, live_input=True)
+    def run_cmd(..., emit_flags):
+        sinks += emit_sinks(cfg, emit_flags, live_input=True)
 
-Nothing is transmitted without ``--emit``; no command without
-``--allow-commands``. The sink itself is :mod:`mavnav.sinks.mavlink_out`.
+The command receives the flags given on the command line as one dict,
+``emit_flags``. Each flag but ``--emit`` and ``--allow-commands`` is also a
+key of the configuration's ``emit:`` section; a flag given wins over the
+key. Nothing is transmitted without ``--emit``; no command without
+``--allow-commands``: those two are flags only. The sink itself is
+:mod:`mavnav.sinks.mavlink_out`.
 """
 
 from __future__ import annotations
@@ -20,29 +23,32 @@ from typing import TYPE_CHECKING, Callable, List, Optional, Sequence, Tuple
 import click
 
 from ..errors import ConfigError, InputError
+from .flags import flag_group
 
 # pymavlink and the output sink are imported when a link is opened or a sink
 # built, not when the CLI parses its arguments.
 if TYPE_CHECKING:
-    from ..config import Config
+    from ..config import Config, EmitSection
     from ..sinks.base import Sink
 
 INPUT = "input"
 
+#: The flags that turn the output on: on the command line only.
+COMMAND_LINE_ONLY: Tuple[str, ...] = ("emit", "allow_commands")
+#: The other flags (click parameter) -> key of the configuration's ``emit:`` section.
+EMIT_FLAGS = {
+    "emit_sysid": "sysid",
+    "emit_compid": "compid",
+    "altitude_rate": "altitude_rate_hz",
+    "statustext_interval": "statustext_interval_s",
+    "emit_debug": "debug_values",
+    "emit_fusable": "fusable",
+    "request_rate": "message_rates",
+    "signing_key": "signing_key",
+    "signing_link_id": "signing_link_id",
+}
 #: The keyword arguments :func:`emit_options` adds (click's parameter names).
-EMIT_OPTION_KEYS: Tuple[str, ...] = (
-    "emit",
-    "emit_sysid",
-    "emit_compid",
-    "altitude_rate",
-    "statustext_interval",
-    "emit_debug",
-    "emit_fusable",
-    "allow_commands",
-    "request_rate",
-    "signing_key",
-    "signing_link_id",
-)
+EMIT_OPTION_KEYS: Tuple[str, ...] = COMMAND_LINE_ONLY + tuple(EMIT_FLAGS)
 
 _OPTIONS = [
     click.option("--emit", "emit", metavar="CONNECTION", default=None,
@@ -81,17 +87,44 @@ _OPTIONS = [
 
 
 def emit_options(f: Callable) -> Callable:
-    """Decorator: add the ``--emit`` family of options to a click command."""
-    for opt in reversed(_OPTIONS):
-        f = opt(f)
-    return f
+    """Decorator: add the ``--emit`` family of options to a click command, which
+    receives those given on the command line as one dict, ``emit_flags``."""
+    return flag_group(_OPTIONS, EMIT_OPTION_KEYS, "emit_flags")(f)
 
 
-def split_emit_options(kwargs: dict) -> Tuple[dict, dict]:
-    """``(emit options, everything else)`` from a command's keyword arguments."""
-    emit = {k: kwargs[k] for k in EMIT_OPTION_KEYS if k in kwargs}
-    rest = {k: v for k, v in kwargs.items() if k not in EMIT_OPTION_KEYS}
-    return emit, rest
+def emit_settings(cfg: Config, flags: dict) -> EmitSection:
+    """The configuration's ``emit:`` section with the flags given over it."""
+    from ..config import with_overrides
+
+    return with_overrides(cfg.emit, {EMIT_FLAGS[k]: v for k, v in flags.items() if k in EMIT_FLAGS}, "emit options")
+
+
+def emit_sinks(cfg: Config, flags: dict, *, live_input: Optional[bool] = None,
+               say: Optional[Callable[[str], None]] = None) -> List[Sink]:
+    """The MAVLink output sinks of a command: none without ``--emit`` (and the
+    flags that need it refused); else as the ``emit:`` section says, with the
+    flags given over it. The section's ``message_rates`` apply only with
+    ``--allow-commands``."""
+    if flags.get("emit") is None:
+        return make_emit_sinks(**flags, live_input=live_input, config=cfg, say=say)
+    s = emit_settings(cfg, flags)
+    allow = bool(flags.get("allow_commands", False))
+    return make_emit_sinks(
+        emit=flags["emit"],
+        emit_sysid=s.sysid,
+        emit_compid=s.compid,
+        altitude_rate=s.altitude_rate_hz,
+        statustext_interval=s.statustext_interval_s,
+        emit_debug=s.debug_values,
+        emit_fusable=s.fusable,
+        allow_commands=allow,
+        request_rate=s.message_rates if allow or "request_rate" in flags else (),
+        signing_key=s.signing_key,
+        signing_link_id=s.signing_link_id,
+        live_input=live_input,
+        config=cfg,
+        say=say,
+    )
 
 
 def _split_baud(connection: str):

@@ -20,14 +20,14 @@ from ..samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceMoved, R
 from ..sinks.base import Sink
 from ..sinks.csv_sink import CsvSink
 from . import main
-from .emit_options import emit_options, make_emit_sinks, split_emit_options
+from .emit_options import emit_options, emit_sinks
 from .honest import check_outputs, has_vehicle_data, no_vehicle_error
-from .viewer_options import make_viewer_sinks, viewer_options
+from .viewer_options import viewer_options, viewer_settings, viewer_sinks
 
 # The monitor, its sources and sinks (numba, scipy, pymavlink, rerun) are
 # imported where a command runs, not when the CLI parses its arguments.
 if TYPE_CHECKING:
-    from ..config import Config
+    from ..config import Config, ViewerSection
 
 
 def common_options(f):
@@ -144,20 +144,14 @@ def parse_speed(text: str) -> Optional[float]:
     return v
 
 
-def build_sinks(cfg: Config, csv_path: Optional[str], live: bool, viewer_kw: dict, emit_kw: dict) -> list[Sink]:
+def build_sinks(cfg: Config, csv_path: Optional[str], live: bool, viewer: ViewerSection,
+                emit_flags: dict) -> list[Sink]:
     sinks: list[Sink] = [AlarmPrinter()]
     if csv_path:
         sinks.append(CsvSink(csv_path))
-    sinks += make_viewer_sinks(live=live, **viewer_kw)
-    sinks += make_emit_sinks(live_input=live, config=cfg, say=lambda text: click.echo(text, err=True), **emit_kw)
+    sinks += viewer_sinks(viewer, live=live)
+    sinks += emit_sinks(cfg, emit_flags, live_input=live, say=lambda text: click.echo(text, err=True))
     return sinks
-
-
-_VIEWER_KEYS = ("viewer", "connect", "rrd", "web_port", "grpc_port", "viewer_bind", "viewer_window", "viewer_hold")
-
-
-def _split_viewer(kw: dict) -> tuple[dict, dict]:
-    return {k: kw[k] for k in _VIEWER_KEYS if k in kw}, {k: v for k, v in kw.items() if k not in _VIEWER_KEYS}
 
 
 @main.command("run")
@@ -165,7 +159,7 @@ def _split_viewer(kw: dict) -> tuple[dict, dict]:
 @common_options
 @viewer_options
 @emit_options
-def run_cmd(connection: str, config_path, sysid, csv_path, inject, **kw) -> None:
+def run_cmd(connection: str, config_path, sysid, csv_path, inject, viewer_flags, emit_flags) -> None:
     """Attach to a live autopilot link and monitor it until interrupted.
 
     CONNECTION is any pymavlink connection string: udpin:0.0.0.0:14550,
@@ -179,11 +173,10 @@ def run_cmd(connection: str, config_path, sysid, csv_path, inject, **kw) -> None
     from ..sim.effects import FaultedSource
     from ..sim.faults import parse_faults
 
-    emit_kw, rest = split_emit_options(kw)
-    viewer_kw, rest = _split_viewer(rest)
     cfg = load_config(config_path)
+    viewer = viewer_settings(cfg, viewer_flags)
     faults = parse_faults(inject)
-    check_outputs({"--csv": csv_path, "--rrd": viewer_kw.get("rrd")})
+    check_outputs({"--csv": csv_path, "--rrd": viewer.rrd})
     live = source = LiveSource(connection, cfg.ingest, sysid=sysid)
     if faults:
         source = FaultedSource(live, faults)
@@ -195,7 +188,7 @@ def run_cmd(connection: str, config_path, sysid, csv_path, inject, **kw) -> None
 
     old = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        sinks = build_sinks(cfg, csv_path, True, viewer_kw, emit_kw)
+        sinks = build_sinks(cfg, csv_path, True, viewer, emit_flags)
         click.echo(f"mavnav: monitoring {connection} ({cfg.monitor.mode} mode); Ctrl-C to stop", err=True)
         # the sinks write back on the input link, and take the replies to their commands from it
         summary = run_pipeline(source, cfg, sinks, info={"source": connection, "live": True,
@@ -215,7 +208,7 @@ def run_cmd(connection: str, config_path, sysid, csv_path, inject, **kw) -> None
 @common_options
 @viewer_options
 @emit_options
-def replay_cmd(tlog: str, speed: str, config_path, sysid, csv_path, inject, **kw) -> None:
+def replay_cmd(tlog: str, speed: str, config_path, sysid, csv_path, inject, viewer_flags, emit_flags) -> None:
     """Replay a recorded log (tlog, ArduPilot DataFlash .bin or PX4 .ulg, detected by
     content) through the monitor: the same pipeline as ``run``."""
     from ..config import load_config
@@ -224,17 +217,16 @@ def replay_cmd(tlog: str, speed: str, config_path, sysid, csv_path, inject, **kw
     from ..sim.effects import FaultedSource
     from ..sim.faults import parse_faults
 
-    emit_kw, rest = split_emit_options(kw)
-    viewer_kw, rest = _split_viewer(rest)
     pace = parse_speed(speed)
     cfg = load_config(config_path)
+    viewer = viewer_settings(cfg, viewer_flags)
     faults = parse_faults(inject)
-    check_outputs({"--csv": csv_path, "--rrd": viewer_kw.get("rrd")})
+    check_outputs({"--csv": csv_path, "--rrd": viewer.rrd})
     source = open_log(tlog, cfg.ingest, sysid=sysid)
     if faults:
         source = FaultedSource(source, faults)
     # a paced replay is watched as it goes: the viewer logs as for a live run
-    sinks = build_sinks(cfg, csv_path, pace is not None, viewer_kw, emit_kw)
+    sinks = build_sinks(cfg, csv_path, pace is not None, viewer, emit_flags)
     # SIGINT and SIGTERM alike: stop between samples, close the sinks (the CSV
     # complete), print the summary, exit 130 as for Ctrl-C
     stop: dict = {}

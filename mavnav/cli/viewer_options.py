@@ -12,10 +12,12 @@
     --viewer-hold/--no-viewer-hold
                                web viewer: keep serving after the run until Ctrl-C (default)
 
-and the command passes them on::
+each also a key of the configuration's ``viewer:`` section; a flag given on
+the command line wins over the key. The command receives the flags given as
+one dict, ``viewer_flags``, and builds the sinks from the two::
 
-    sinks += make_viewer_sinks(viewer, connect, rrd, live=..., web_port=web_port, grpc_port=grpc_port,
-                               viewer_bind=viewer_bind, viewer_window=viewer_window, viewer_hold=viewer_hold)
+    viewer = viewer_settings(cfg, viewer_flags)
+    sinks += viewer_sinks(viewer, live=...)
 
 Web mode runs ``rerun --serve-web`` (from rerun-sdk) as a child process that
 hosts both the viewer page and its data, bound to ``--viewer-bind``; the page
@@ -41,13 +43,18 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Optional
+from typing import TYPE_CHECKING, Callable, Optional
 from urllib.parse import quote, urlsplit
 
 import click
 
 from ..errors import MavnavError
+from .flags import flag_group
+
+if TYPE_CHECKING:
+    from ..config import Config, ViewerSection
 
 log = logging.getLogger("mavnav.cli.viewer")
 
@@ -57,8 +64,14 @@ DEFAULT_GRPC_PORT = 9876
 START_TIMEOUT_S = 15.0
 
 
+#: click parameter -> key of the configuration's ``viewer:`` section
+VIEWER_FLAGS = {"viewer": "viewer", "connect": "connect", "rrd": "rrd", "web_port": "web_port",
+                "grpc_port": "grpc_port", "viewer_bind": "bind", "viewer_window": "window_s", "viewer_hold": "hold"}
+
+
 def viewer_options(f: Callable) -> Callable:
-    """Add the Rerun viewer options to a click command."""
+    """Add the Rerun viewer options to a click command, which receives those
+    given on the command line as one dict, ``viewer_flags``."""
     options = [
         click.option("--viewer", type=click.Choice(VIEWERS), default="none", show_default=True,
                      help="Show the run in Rerun: spawn a native viewer, or serve a web viewer."),
@@ -78,9 +91,21 @@ def viewer_options(f: Callable) -> Callable:
         click.option("--viewer-hold/--no-viewer-hold", default=True, show_default=True,
                      help="--viewer web: keep serving after the run ends, until Ctrl-C."),
     ]
-    for option in reversed(options):
-        f = option(f)
-    return f
+    return flag_group(options, tuple(VIEWER_FLAGS), "viewer_flags")(f)
+
+
+def viewer_settings(cfg: Config, flags: dict) -> ViewerSection:
+    """The configuration's ``viewer:`` section with the flags given over it."""
+    from ..config import with_overrides
+
+    return with_overrides(cfg.viewer, {VIEWER_FLAGS[k]: v for k, v in flags.items()}, "viewer options")
+
+
+def viewer_sinks(viewer: ViewerSection, live: bool) -> list:
+    """:func:`make_viewer_sinks` for these settings."""
+    return make_viewer_sinks(viewer.viewer, viewer.connect, viewer.rrd, live=live, web_port=viewer.web_port,
+                             grpc_port=viewer.grpc_port, viewer_bind=viewer.bind, viewer_window=viewer.window_s,
+                             viewer_hold=viewer.hold)
 
 
 # --------------------------------------------------------------------------
@@ -273,98 +298,137 @@ def make_viewer_sinks(
     The returned sink has ``.page_url`` (web mode, else None) and
     ``.processes`` (the rerun children it started).
     """
-    import uuid
-
     import rerun as rr
-
-    from ..sinks.rerun_sink import Output, RerunSink, ViewerTarget
 
     if viewer not in VIEWERS:
         raise MavnavError(f"--viewer {viewer!r}: expected one of {', '.join(VIEWERS)}")
     if viewer == "none" and not connect and not rrd:
         return []
-
-    targets: list[tuple[object, Optional[ViewerTarget]]] = []  # (rerun sink, what to watch)
-    processes: list[ViewerProcess] = []
-    on_close: list[Callable[[], None]] = []
-    page_url: Optional[str] = None
-    grpc_urls: set[str] = set()
-
-    def pick(port: int, what: str) -> int:
-        if port == 0:
-            return free_port(viewer_bind)
-        if port_open(viewer_bind, port):
-            chosen = free_port(viewer_bind)
-            echo(f"mavnav: port {port} ({what}) is busy; using {chosen}")
-            return chosen
-        return port
-
+    found = _Targets()
     if viewer == "web":
-        gport = pick(grpc_port, "viewer data")
-        wport = pick(web_port, "web viewer")
-        args = [rerun_executable(), "--serve-web", "--bind", viewer_bind, "--port", str(gport),
-                "--web-viewer-port", str(wport)]
-        process = ViewerProcess(args, viewer_bind, (gport, wport))
-        why = process.wait_ready()
+        _add_web_viewer(found, rr, viewer_bind, web_port, grpc_port, viewer_hold, echo)
+    elif viewer == "spawn":
+        _add_spawned_viewer(found, rr, viewer_bind, grpc_port, echo)
+    if connect:
+        _add_connected_viewer(found, rr, connect, echo)
+    if rrd:
+        found.targets.append((rr.FileSink(str(rrd)), None))
+    if not found.targets:
+        return []
+    return [_rerun_sink(found, rr, application_id, live, viewer_window, live_batch_s)]
+
+
+@dataclass
+class _Targets:
+    """What :func:`make_viewer_sinks` found to send to, and what it started."""
+
+    targets: list = field(default_factory=list)  # (rerun sink, ViewerTarget or None: what to watch)
+    processes: list = field(default_factory=list)  # ViewerProcess children started
+    on_close: list = field(default_factory=list)  # called when the sink closes
+    page_url: Optional[str] = None  # the web viewer's page
+    grpc_urls: set = field(default_factory=set)  # data servers already targeted
+
+
+def _pick_port(port: int, what: str, bind: str, echo: Callable[[str], None]) -> int:
+    """``port``, or a free one when it is 0 or busy (said so)."""
+    if port == 0:
+        return free_port(bind)
+    if port_open(bind, port):
+        chosen = free_port(bind)
+        echo(f"mavnav: port {port} ({what}) is busy; using {chosen}")
+        return chosen
+    return port
+
+
+def _add_web_viewer(found: _Targets, rr, bind: str, web_port: int, grpc_port: int, hold: bool,
+                    echo: Callable[[str], None]) -> None:
+    """Start ``rerun --serve-web`` and target it (or say why not)."""
+    from ..sinks.rerun_sink import ViewerTarget
+
+    gport = _pick_port(grpc_port, "viewer data", bind, echo)
+    wport = _pick_port(web_port, "web viewer", bind, echo)
+    args = [rerun_executable(), "--serve-web", "--bind", bind, "--port", str(gport),
+            "--web-viewer-port", str(wport)]
+    process = ViewerProcess(args, bind, (gport, wport))
+    why = process.wait_ready()
+    if why is not None:
+        process.stop()
+        echo(f"mavnav: warning: the web viewer could not start ({why}); going on without it")
+        return
+    data_url = f"rerun+http://{_connect_host(bind)}:{gport}/proxy"
+    page_url = web_page_url(bind, wport, data_url)
+    found.page_url = page_url
+    found.processes.append(process)
+    found.grpc_urls.add(data_url)
+    found.targets.append((rr.GrpcSink(data_url), ViewerTarget(f"the web viewer ({page_url})", process.check)))
+    atexit.register(process.stop)
+    if hold:
+        # registered after stop(): atexit runs it first
+        found.on_close.append(lambda: atexit.register(_hold, page_url, process, echo))
+    echo(f"mavnav: Rerun web viewer at {page_url}")
+
+
+def _no_display() -> bool:
+    return sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def _add_spawned_viewer(found: _Targets, rr, bind: str, grpc_port: int, echo: Callable[[str], None]) -> None:
+    """Target the native viewer at the gRPC port, spawned unless one already
+    listens there (or say why not)."""
+    from ..sinks.rerun_sink import ViewerTarget
+
+    gport = DEFAULT_GRPC_PORT if grpc_port == 0 else grpc_port
+    data_url = f"rerun+http://{_connect_host(bind)}:{gport}/proxy"
+    why: Optional[str] = None
+    if port_open(bind, gport):
+        pass  # a viewer is already there: use it, as rerun's own spawn does
+    elif _no_display():
+        why = "no display (DISPLAY and WAYLAND_DISPLAY are unset); try --viewer web"
+    else:
+        args = [rerun_executable(), "--bind", bind, "--port", str(gport), "--memory-limit", "75%"]
+        process = ViewerProcess(args, bind, (gport,))
+        why = process.wait_ready(settle_s=1.0)  # it listens before it opens its window
         if why is not None:
             process.stop()
-            echo(f"mavnav: warning: the web viewer could not start ({why}); going on without it")
-        else:
-            data_url = f"rerun+http://{_connect_host(viewer_bind)}:{gport}/proxy"
-            page_url = web_page_url(viewer_bind, wport, data_url)
-            processes.append(process)
-            grpc_urls.add(data_url)
-            targets.append((rr.GrpcSink(data_url), ViewerTarget(f"the web viewer ({page_url})", process.check)))
-            atexit.register(process.stop)
-            if viewer_hold:
-                # registered after stop(): atexit runs it first
-                on_close.append(lambda: atexit.register(_hold, page_url, process, echo))
-            echo(f"mavnav: Rerun web viewer at {page_url}")
-    elif viewer == "spawn":
-        gport = DEFAULT_GRPC_PORT if grpc_port == 0 else grpc_port
-        data_url = f"rerun+http://{_connect_host(viewer_bind)}:{gport}/proxy"
-        why: Optional[str] = None
-        if port_open(viewer_bind, gport):
-            pass  # a viewer is already there: use it, as rerun's own spawn does
-        elif sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-            why = "no display (DISPLAY and WAYLAND_DISPLAY are unset); try --viewer web"
-        else:
-            args = [rerun_executable(), "--bind", viewer_bind, "--port", str(gport), "--memory-limit", "75%"]
-            process = ViewerProcess(args, viewer_bind, (gport,))
-            why = process.wait_ready(settle_s=1.0)  # it listens before it opens its window
-            if why is not None:
-                process.stop()
-        if why is not None:
-            echo(f"mavnav: warning: the Rerun viewer could not start ({why}); going on without it")
-        else:
-            grpc_urls.add(data_url)
-            targets.append((rr.GrpcSink(data_url),
-                            ViewerTarget(f"the Rerun viewer at {data_url}", _tcp_check(viewer_bind, gport))))
-    if connect:
-        url, host, port = grpc_url(connect)
-        if url in grpc_urls:
-            pass
-        elif not port_open(host, port, 1.0):
-            # rerun would block for seconds trying to connect: do not attach at all
-            echo(f"mavnav: warning: no Rerun viewer listens at {url}; going on without it")
-        else:
-            targets.append((rr.GrpcSink(url), ViewerTarget(f"the Rerun viewer at {url}", _tcp_check(host, port))))
-    if rrd:
-        targets.append((rr.FileSink(str(rrd)), None))
-    if not targets:
-        return []
+    if why is not None:
+        echo(f"mavnav: warning: the Rerun viewer could not start ({why}); going on without it")
+        return
+    found.grpc_urls.add(data_url)
+    found.targets.append((rr.GrpcSink(data_url),
+                          ViewerTarget(f"the Rerun viewer at {data_url}", _tcp_check(bind, gport))))
+
+
+def _add_connected_viewer(found: _Targets, rr, connect: str, echo: Callable[[str], None]) -> None:
+    """Target the viewer at ``--connect`` if one listens there (and it is not targeted already)."""
+    from ..sinks.rerun_sink import ViewerTarget
+
+    url, host, port = grpc_url(connect)
+    if url in found.grpc_urls:
+        return
+    if not port_open(host, port, 1.0):
+        # rerun would block for seconds trying to connect: do not attach at all
+        echo(f"mavnav: warning: no Rerun viewer listens at {url}; going on without it")
+        return
+    found.targets.append((rr.GrpcSink(url), ViewerTarget(f"the Rerun viewer at {url}", _tcp_check(host, port))))
+
+
+def _rerun_sink(found: _Targets, rr, application_id: str, live: bool, window_s: float, live_batch_s: float):
+    """One :class:`RerunSink` over a recording stream per target, all with one recording id."""
+    import uuid
+
+    from ..sinks.rerun_sink import Output, RerunSink
 
     recording_id = uuid.uuid4()
     outputs = []
-    for rr_sink, target in targets:
+    for rr_sink, target in found.targets:
         rec = rr.RecordingStream(application_id, recording_id=recording_id)
         rec.set_sinks(rr_sink)
         outputs.append(Output(rec, target))
-    sink = RerunSink(outputs, live=live, window_s=viewer_window, live_batch_s=live_batch_s, on_close=on_close)
-    sink.page_url = page_url  # type: ignore[attr-defined]
-    sink.processes = processes  # type: ignore[attr-defined]
-    return [sink]
+    sink = RerunSink(outputs, live=live, window_s=window_s, live_batch_s=live_batch_s, on_close=found.on_close)
+    sink.page_url = found.page_url  # type: ignore[attr-defined]
+    sink.processes = found.processes  # type: ignore[attr-defined]
+    return sink
 
 
-__all__ = ["viewer_options", "make_viewer_sinks", "grpc_url", "web_page_url", "port_open", "free_port",
+__all__ = ["viewer_options", "viewer_settings", "viewer_sinks", "VIEWER_FLAGS", "make_viewer_sinks", "grpc_url", "web_page_url", "port_open", "free_port",
            "rerun_executable", "ViewerProcess"]

@@ -51,8 +51,12 @@ def _config(cfg_json: str) -> Config:
 
 
 def config_json(cfg: Config) -> str:
-    """The canonical JSON text of a configuration: what tasks receive and what the cache key hashes."""
-    return json.dumps(cfg.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+    """The canonical JSON text of a configuration: what tasks receive and what the cache key hashes.
+    Without the keys that only say how results are shown or sent (``OUTPUT_ONLY_KEYS``):
+    an audit does not depend on them."""
+    from ..config import OUTPUT_ONLY_KEYS
+
+    return json.dumps(cfg.model_dump(mode="json", exclude=OUTPUT_ONLY_KEYS), sort_keys=True, separators=(",", ":"))
 
 
 def audit_task(path: str, display: str, cfg_json: str, sysid: Optional[int] = None, faults: tuple = ()) -> dict:

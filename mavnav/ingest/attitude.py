@@ -17,6 +17,7 @@ from typing import Deque, List, Optional, Tuple
 from ..frames import Quat, slerp
 
 _KEEP = 512  # attitudes kept (10 s at 50 Hz)
+_WAIT = object()  # an item that waits for a later attitude
 
 
 class AttitudeInterpolator:
@@ -51,35 +52,21 @@ class AttitudeInterpolator:
         """Pop resolvable pending items: ``(item, quat or None, used_nearest)``."""
         pend = self.pending
         ts = self._t
-        if pend and not flush and ts and now_us is not None:
+        if pend and not flush and ts and now_us is not None:  # inline, the hot path
             t = pend[0][0]
             if t > ts[-1] and now_us < t + self.wait_us:
                 return []  # fast path: still waiting for the next attitude
         out = []
         while pend:
             t, item = pend[0]
-            n = len(ts)
-            q = None
-            if n and ts[0] <= t <= ts[-1]:
-                i = bisect_left(ts, t)
-                if ts[i] == t:
-                    q = self._q[i]
-                else:
-                    t0, t1 = ts[i - 1], ts[i]
-                    if t1 - t0 <= 2 * self.max_age_us:
-                        q = slerp(self._q[i - 1], self._q[i], (t - t0) / (t1 - t0))
-                if q is not None:
-                    pend.popleft()
-                    out.append((item, q, False))
-                    continue
-            if n and t < ts[0]:
-                near = self._q[0] if ts[0] - t <= self.max_age_us else None  # every attitude is later
-            else:
-                if not flush and (now_us is None or now_us < t + self.wait_us):
-                    break  # a bracketing attitude may still come
-                near = self._nearest(t)
-                if near is None and not flush and now_us < t + self.max_age_us:
-                    break  # nothing close yet; a later attitude may still be
+            q = self._bracketed(t)
+            if q is not None:
+                pend.popleft()
+                out.append((item, q, False))
+                continue
+            near = self._unbracketed(t, now_us, flush)
+            if near is _WAIT:
+                break
             pend.popleft()
             if near is None:
                 out.append((item, None, False))
@@ -87,6 +74,35 @@ class AttitudeInterpolator:
                 self.nearest += 1
                 out.append((item, near, True))
         return out
+
+    def _bracketed(self, t: int) -> Optional[Quat]:
+        """The attitude at ``t`` from the two attitudes around it (one at ``t``
+        itself, or a slerp between two no more than twice ``max_age`` apart)."""
+        ts = self._t
+        if not ts or not ts[0] <= t <= ts[-1]:
+            return None
+        i = bisect_left(ts, t)
+        if ts[i] == t:
+            return self._q[i]
+        t0, t1 = ts[i - 1], ts[i]
+        if t1 - t0 <= 2 * self.max_age_us:
+            return slerp(self._q[i - 1], self._q[i], (t - t0) / (t1 - t0))
+        return None
+
+    def _unbracketed(self, t: int, now_us: Optional[int], flush: bool):
+        """The attitude of an item no pair brackets: the first attitude when
+        every one is later (None when too far), else the nearest one once its
+        wait is over (None when none is close); ``_WAIT`` while a better one
+        may still come."""
+        ts = self._t
+        if ts and t < ts[0]:
+            return self._q[0] if ts[0] - t <= self.max_age_us else None  # every attitude is later
+        if not flush and (now_us is None or now_us < t + self.wait_us):
+            return _WAIT  # a bracketing attitude may still come
+        near = self._nearest(t)
+        if near is None and not flush and now_us < t + self.max_age_us:
+            return _WAIT  # nothing close yet; a later attitude may still be
+        return near
 
     def _nearest(self, t: int) -> Optional[Quat]:
         ts = self._t

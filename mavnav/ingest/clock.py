@@ -7,7 +7,7 @@ is used only to place messages that carry no time at all.
 * **Reboot, clock steps, stale packets.** A boot-time value well behind
   the latest one is held as a *candidate* time base, and so is a forward
   jump larger than the receive time elapsed allows (3x plus 10 s); the
-  normaliser confirms it with several messages (see ``Normaliser._timed``):
+  normaliser confirms it with several messages (see :mod:`.timebase`):
   more than ``reboot_jump_s`` behind is a reboot (the boot index
   increments), less is a step of the vehicle clock (``step_us`` keeps one
   timeline), and a candidate the old time base goes on after was a stale

@@ -36,7 +36,7 @@ import queue
 import socket
 import threading
 import time
-from typing import Callable, Iterator, Optional
+from typing import Callable, Iterator, List, Optional
 
 from pymavlink import mavutil
 
@@ -204,31 +204,35 @@ class LiveSource:
         (pymavlink message objects), in the iterating thread."""
         self._taps.append(callback)
 
-    def _to_taps(self, msgid: int, sysid: int, compid: int, payload: bytes) -> None:
+    def _to_taps(self, msgid: int, sysid: int, compid: int, payload: bytes) -> List[object]:
+        """Returns what the normaliser says of a malformed payload (else nothing)."""
         if sysid != self._norm.sysid:
-            return  # another system's heartbeat or answer: not the vehicle the commands go to
+            return []  # another system's heartbeat or answer: not the vehicle the commands go to
         try:
             fields = self._tap_decoders[msgid](payload)
             cls = _dialect.mavlink_map[msgid]
             msg = cls(*[fields[n] for n in cls.fieldnames])
             msg._header = _dialect.MAVLink_header(msgid, srcSystem=sysid, srcComponent=compid)
         except Exception as exc:  # a CRC-valid but malformed payload
-            self._norm.problem(Rejected(self.clock(), "malformed", f"{wire.msg_name(msgid)}: {exc}"))
-            return
+            return self._norm.problem(Rejected(self.clock(), "malformed", f"{wire.msg_name(msgid)}: {exc}"))
         for cb in self._taps:
             cb(msg)
+        return []
 
-    def _handle(self, items) -> None:
+    def _handle(self, items) -> List[object]:
+        """The reader's frames and problems through the normaliser (and the taps): what they release."""
         norm = self._norm
+        out: List[object] = []
         for item in items:
             if type(item) is tuple:
                 msgid = item[1]
                 if msgid not in TAP_ONLY:
-                    norm.feed(*item)
+                    out += norm.feed(*item)
                 if msgid in TAPPED and self._taps:
-                    self._to_taps(*item[1:])
+                    out += self._to_taps(*item[1:])
             else:
-                norm.problem(item)
+                out += norm.problem(item)
+        return out
 
     def _start_receiver(self) -> None:
         if self._receiver is None and not self._closed.is_set():
@@ -243,7 +247,6 @@ class LiveSource:
 
     def __iter__(self) -> Iterator[object]:
         norm, reader = self._norm, self._reader
-        out = norm.out
         q = self._queue
         closed = self._closed
         self._start_receiver()
@@ -252,19 +255,18 @@ class LiveSource:
                 recv_s, data = q.get(timeout=self.poll_s)
             except queue.Empty:
                 data = None
+            out: List[object] = []
             if data:
                 with self._backlog_lock:
                     self._backlog -= len(data)
-                self._handle(reader.feed(data, recv_s))
+                out += self._handle(reader.feed(data, recv_s))
             if q.empty():  # caught up: a silence now is a silence on the link, not a backlog
                 now = self.clock()
-                self._handle(reader.expire(now))
-                norm.tick(now)
+                out += self._handle(reader.expire(now))
+                out += norm.tick(now)
             if out:
                 yield from out
-                out.clear()
-        self._handle(reader.flush())
-        norm.finish()
+        out = self._handle(reader.flush())
+        out += norm.finish()
         fill_message_stats(self.stats, reader, norm.sysid)
         yield from out
-        out.clear()

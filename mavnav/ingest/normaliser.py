@@ -3,10 +3,12 @@
 One :class:`Normaliser` per link (a live connection or one tlog) is fed
 decoded-on-demand frames ``(recv_s, msgid, sysid, compid, payload)`` by a
 frame reader (:mod:`.tlog_reader` or :mod:`.stream_reader`), so live and
-replay share every rule below. Its output list (``out``) holds samples and
-events in arrival order, except that samples held for a reference or a
-bracketing attitude are released when it arrives; within each kind and
-boot ``t_us`` strictly increases.
+replay share every rule below. Each of :meth:`~Normaliser.feed`,
+:meth:`~Normaliser.problem`, :meth:`~Normaliser.tick` and
+:meth:`~Normaliser.finish` returns what it releases: samples and events in
+arrival order, except that samples held for a reference or a bracketing
+attitude are released when it arrives; within each kind and boot ``t_us``
+strictly increases.
 
 Decisions the issue left open (see also the module docs of :mod:`.clock`,
 :mod:`.attitude`, :mod:`.references`, :mod:`.streams`):
@@ -88,12 +90,12 @@ Decisions the issue left open (see also the module docs of :mod:`.clock`,
 
 from __future__ import annotations
 
-import bisect
 import math
 from collections import deque
-from typing import Deque, List, Optional
+from dataclasses import dataclass
+from typing import Deque, List, NamedTuple, Optional, Sequence
 
-from ..atmosphere import height_from_pressure_m, pressure_at_height_pa
+from ..atmosphere import height_from_pressure_m
 from ..config import IngestConfig
 from ..constants import G0_MPS2
 from ..frames import cos_tilt, down_row_from_quat, f_up_from_body, quat_from_euler
@@ -114,8 +116,8 @@ from ..samples import (
 )
 from . import wire
 from .attitude import AttitudeInterpolator
-from .clock import HOLD, UNIX_THRESHOLD_US, StreamClocks, VehicleClock
-from .references import ReferenceResolver
+from .heightref import GNSS_FIXED, BaroItem, GnssItem, HeightReferences
+from .timebase import SETTLED, ClockStepped, NewBoot, Placed, TimeBase
 from .stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
 from .streams import KindGuard, SourceSelector
 from .vehicle_class import is_height_input, not_applicable_reason, notice_text
@@ -130,21 +132,12 @@ DISTANCE_SENSOR_QUALITY_INVALID = 1
 UINT32_MAX = 0xFFFFFFFF
 MAX_SPECIFIC_FORCE_MPS2 = 50 * G0_MPS2  # beyond any airframe IMU range
 MAX_PRESSURE_PA = 2.0e7  # 200 bar: deeper than any ROV depth sensor reads
-REL_ALT_MAX_AGE_US = 1_000_000  # a baro sample pairs with the autopilot's height this close in time
-ANCHOR_WINDOW_US = 1_000_000  # baro samples averaged for a reference from the autopilot (capped by startup_window_s)
 HOME_UNSET_MM = 50  # GLOBAL_POSITION_INT alt - relative_alt below this: ArduPilot's home not yet set
-WAIT_NOTICE_US = 1_000_000  # held this long for a reference: say what for
 PRE_IMU_HOLD_US = 5_000_000  # at most this long do measurements wait for the first IMU sample of a boot
 GATED = frozenset(("baro", "gnss", "range"))
-REL_HIST_MAX = 8192
 WAIT_HEARTBEAT_S = 2.0  # live: no vehicle heartbeat this long after starting: say what is awaited
 WAIT_HEARTBEAT_REPEAT_S = 10.0  # and again this often
 OTHER_FRAMES_BEFORE_SAYING = 20  # another system without a heartbeat is said after this many frames
-BEHIND_US = 300_000  # a vehicle time this far behind the clock starts a candidate time base
-CONFIRM_N = 5  # messages on a new time base before it is adopted ...
-CONFIRM_SPAN_US = 1_000_000  # ... spanning this much of its time (or catching up), nothing of the old one between
-CLOCK_STEP_GAP_US = 1_000  # after a step back, the first new time lands this far after the last old one
-HOME_CONFIRM_N = 3  # GLOBAL_POSITION_INT messages in a row that must show a moved home
 
 IMU_RANKING = ("HIGHRES_IMU", "RAW_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3")
 RANGE_RANKING = ("DISTANCE_SENSOR", "RANGEFINDER")
@@ -163,6 +156,73 @@ WANTED = frozenset(
 )
 
 
+class ImuItem(NamedTuple):
+    """An IMU sample on the vehicle clock, before its attitude is known."""
+
+    t_us: int
+    recv_s: float
+    boot: int
+    fb: tuple  # specific force, body FRD, m/s^2
+    name: str  # the message it came in
+
+
+class RangeItem(NamedTuple):
+    """A rangefinder message on the vehicle clock, before its checks."""
+
+    t_us: int
+    recv_s: float
+    boot: int
+    name: str  # DISTANCE_SENSOR or RANGEFINDER
+    f: dict  # its fields
+
+
+class AutopilotItem(NamedTuple):
+    """The autopilot's own height on the vehicle clock, before its datum is decided."""
+
+    t_us: int
+    recv_s: float
+    boot: int
+    alt_msl: Optional[float]  # GLOBAL_POSITION_INT alt (None without a position; LOCAL_POSITION_NED: None)
+    local_up: float  # above its home (relative_alt) or its EKF origin (-z)
+    vel_up: float
+
+
+class _RangeReading(NamedTuple):
+    """The latest reading of one rangefinder message, for the cross-check."""
+
+    recv_s: float
+    range_m: float
+
+
+class _Heartbeat(NamedTuple):
+    type: int  # MAV_TYPE
+    autopilot: int  # MAV_AUTOPILOT
+
+
+@dataclass
+class _OtherSystem:
+    """Another system heard on the link: its frames, its heartbeat ``(type, autopilot)`` if one came, said yet."""
+
+    frames: int = 0
+    heartbeat: Optional[_Heartbeat] = None
+    said: bool = False
+
+
+@dataclass
+class _RangeRun:
+    """One raw rangefinder value repeated since ``t_start_us`` (boot ``boot``),
+    with the lowest and highest pressure seen meanwhile (the stuck test)."""
+
+    raw: object
+    t_start_us: int
+    p_min: Optional[float]
+    p_max: Optional[float]
+    boot: int
+
+
+_NOTHING: tuple = ()  # what a call that releases nothing returns
+
+
 def _finite(*vals) -> bool:
     for v in vals:
         if not math.isfinite(v):
@@ -175,57 +235,38 @@ class Normaliser:
                  link_name: str = "the link"):
         cfg = self.cfg = config
         self.stats = stats if stats is not None else IngestStats()
-        self.out: List[object] = []
+        self._out: List[object] = []  # what the current call releases (see _drain)
         self.sysid = sysid
         self.link_name = link_name
         self._asked = sysid is not None
         self._not_applicable: Optional[str] = None  # why height integrity does not apply (vehicle_class)
-        self._others: dict = {}  # other systems heard: sysid -> [frames, description or None, said]
+        self._others: dict[int, _OtherSystem] = {}  # other systems heard, by sysid
         self._wait_hb_t0: Optional[float] = None  # receive time of the first tick (live)
         self._wait_hb_next: Optional[float] = None
-        self.ap_compid = MAV_COMP_ID_AUTOPILOT1
         self.autopilot: Optional[int] = None
         self._preselect: Deque[tuple] = deque()
         if sysid is not None:
             self.stats.vehicle = VehicleInfo(sysid=sysid)
-        self.clock = VehicleClock(cfg.reboot_jump_s)
-        self.streams = StreamClocks()
+        self.time = TimeBase(cfg.reboot_jump_s)
+        self.clock = self.time.clock  # read here (boot, last time); moved by the time stage only
         self.att = AttitudeInterpolator(cfg.attitude_wait_s, cfg.attitude_max_age_s)
         self.guard = KindGuard(cfg.gap_min_s, cfg.gap_factor)
         self.imu_sel = SourceSelector(IMU_RANKING, cfg.imu_source, cfg.source_select_s)
         self.range_sel = SourceSelector(RANGE_RANKING, cfg.range_source, cfg.source_select_s)
         self.ap_sel = SourceSelector(AUTOPILOT_RANKING, cfg.autopilot_source, cfg.source_select_s)
-        self.baro_ref = ReferenceResolver(
-            "baro", cfg.baro_reference, _item_t, _mean_pressure, self._baro_anchored
-        )
-        self.gnss_ref = ReferenceResolver(
-            "gnss", cfg.gnss_reference, _item_t, _mean_alt, self._gnss_anchored
-        )
-        self._anchor: Optional[tuple] = None  # (origin, alt_msl_m, height kind): the autopilot's reference point
-        self._home_pos: Optional[tuple] = None  # (t_us, boot, alt_msl_m) of the first HOME_POSITION
-        # the reference point as it moves with the autopilot's home (alt MSL), and what moved it last
-        self._point_msl: Optional[float] = None
-        self._home_last: dict = {}  # origin ("home", "autopilot_home") -> the last home altitude it gave
-        self._gpi_home_cands: List[float] = []  # a moved GLOBAL_POSITION_INT home, not yet confirmed
-        # the autopilot's height above its home / EKF origin, this boot, while the baro reference is open
-        self._rel_hist = {"GLOBAL_POSITION_INT": [], "LOCAL_POSITION_NED": []}  # [(t_us, height_m, vel_up_mps)]
-        self._wait_said: set = set()
+        self.refs = HeightReferences(cfg, self.clock, lambda: self._last_recv)
         self._imu_out = False  # an IMU sample of this boot went out
         self._pre_imu: List[object] = []  # measurements waiting for it
-        self._cands: List[tuple] = []  # (t_us, recv_s, fn, f): a new vehicle time base, unconfirmed
-        self._followers: List[tuple] = []
         self._last_recv: Optional[float] = None
         self._link_lost = False
-        self._geoid_sep_m: Optional[float] = None
-        self._ekf_origin_msl_m: Optional[float] = None
-        self._ap_held: Deque[tuple] = deque()
+        self._ap_held: Deque[AutopilotItem] = deque()
         self._ap_mode: Optional[str] = None
         self._gnss_wait_us = int(cfg.gnss_reference.home_wait_s * 1e6)
         self._cos_max_tilt = math.cos(math.radians(cfg.rangefinder_max_tilt_deg))
         self._stuck_us = int(cfg.rangefinder_stuck_s * 1e6)
-        self._run: Optional[list] = None  # [raw_value, t_start, p_min, p_max, boot]
-        # the latest reading of each rangefinder message, for the cross-check: name -> (recv_s, m)
-        self._range_last: dict[str, tuple[float, float]] = {}
+        self._range_run: Optional[_RangeRun] = None
+        # the latest reading of each rangefinder message, for the cross-check, by message name
+        self._range_last: dict[str, _RangeReading] = {}
         self._last_pressure_pa: Optional[float] = None
         self._pressure_id = PRESSURE_IDS[cfg.baro_instance]
         self._decoders = {mid: wire.make_decoder(mid) for mid in WANTED}
@@ -249,10 +290,38 @@ class Normaliser:
         }
         for mid in PRESSURE_IDS.values():
             self._handlers[mid] = self._scaled_pressure
+        # what the time stage places (timebase.Placed.what) -> its handler, (f, t_us, recv_s)
+        self._placed = {
+            "system_time": self._system_time_at,
+            "attitude": self._attitude_at,
+            "imu": self._imu_at,
+            "pressure": self._pressure_at,
+            "gnss": self._gnss_at,
+            "distance_sensor": self._distance_sensor_at,
+            "rangefinder": self._rangefinder_at,
+            "global_position_int": self._global_position_int_at,
+            "local_position_ned": self._local_position_ned_at,
+        }
 
     # ------------------------------------------------------------------ input
 
-    def feed(self, recv_s: float, msgid: int, sysid: int, compid: int, payload: bytes) -> None:
+    def feed(self, recv_s: float, msgid: int, sysid: int, compid: int, payload: bytes) -> Sequence[object]:
+        """One frame of the link; returns the samples and events it releases."""
+        self._frame(recv_s, msgid, sysid, compid, payload)
+        out = self._out  # _drain(), inline: once per frame
+        if not out:
+            return _NOTHING  # most frames release nothing: no new list for them
+        self._out = []
+        return out
+
+    def _drain(self) -> Sequence[object]:
+        out = self._out
+        if not out:
+            return _NOTHING
+        self._out = []
+        return out
+
+    def _frame(self, recv_s: float, msgid: int, sysid: int, compid: int, payload: bytes) -> None:
         if sysid != self.sysid:
             self._other_system(recv_s, msgid, sysid, payload)
             if self.sysid is None:
@@ -289,15 +358,16 @@ class Normaliser:
         if self._pre_imu and self._imu_out:
             self._merge_gate()
 
-    def problem(self, rejected: Rejected) -> None:
-        """A frame-level problem reported by the reader (garbage, CRC, unknown id...)."""
+    def problem(self, rejected: Rejected) -> Sequence[object]:
+        """A frame-level problem reported by the reader (garbage, CRC, unknown id...): returns it."""
         self.stats.rejected[rejected.kind] += 1
         self.stats.events["Rejected"] += 1
-        self.out.append(rejected)
+        self._out.append(rejected)
+        return self._drain()
 
-    def tick(self, now_s: float) -> None:
+    def tick(self, now_s: float) -> Sequence[object]:
         """Live links: declare the link lost after ``link_timeout_s`` of silence, and say
-        what is awaited while no heartbeat of the vehicle came."""
+        what is awaited while no heartbeat of the vehicle came. Returns those events."""
         if self.autopilot is None:
             self._say_waiting_heartbeat(now_s)
         last = self._last_recv
@@ -305,16 +375,17 @@ class Normaliser:
             self._link_lost = True
             self.stats.link_losses += 1
             self._emit(LinkLost(recv_s=now_s, silent_s=now_s - last))
+        return self._drain()
 
-    def finish(self) -> None:
-        """End of stream: decide what is pending and release everything held."""
+    def finish(self) -> Sequence[object]:
+        """End of stream: decide what is pending and release everything held (returned)."""
         if self.sysid is None and self._preselect:
             self.stats.filtered["no_vehicle_heartbeat"] += len(self._preselect)
             self._preselect.clear()
-        if self._cands:
-            self._refute_candidates("at the end of the stream")
+        self._on_time(self.time.finish())
         self._settle_boot()
         self._finalise_stats()
+        return self._drain()
 
     # ------------------------------------------------------------------ vehicle
 
@@ -327,8 +398,8 @@ class Normaliser:
                 held = list(self._preselect)
                 self._preselect.clear()
                 for fr in held:
-                    self.feed(*fr)
-                self.feed(recv_s, msgid, sysid, compid, payload)
+                    self._frame(*fr)
+                self._frame(recv_s, msgid, sysid, compid, payload)
                 return
         if len(self._preselect) >= self.cfg.preselect_max_frames:
             self._preselect.popleft()
@@ -338,7 +409,7 @@ class Normaliser:
     def _heartbeat(self, f, recv_s, compid) -> None:
         if self.autopilot is None and f["autopilot"] != MAV_AUTOPILOT_INVALID and f["type"] != MAV_TYPE_GCS:
             self.autopilot = f["autopilot"]
-            self.ap_compid = compid
+            self.time.ap_compid = compid
             self.stats.vehicle = VehicleInfo(self.sysid, compid, f["type"], f["autopilot"])
             why = "as asked (--sysid)" if self._asked else "the first autopilot heartbeat"
             self._emit(Notice(recv_s, "vehicle", f"monitoring system {self.sysid} "
@@ -356,27 +427,28 @@ class Normaliser:
         """A frame from a system that is not (or not yet) the vehicle: remembered, and said once."""
         o = self._others.get(sysid)
         if o is None:
-            o = self._others[sysid] = [0, None, False]
-        o[0] += 1
-        if msgid == HEARTBEAT and o[1] is None:
+            o = self._others[sysid] = _OtherSystem()
+        o.frames += 1
+        if msgid == HEARTBEAT and o.heartbeat is None:
             try:
                 hb = self._decoders[HEARTBEAT](payload)
-                o[1] = (hb["type"], hb["autopilot"])
+                o.heartbeat = _Heartbeat(hb["type"], hb["autopilot"])
             except Exception:
                 pass
-        if self.autopilot is not None and not o[2] and (o[1] is not None or o[0] >= OTHER_FRAMES_BEFORE_SAYING):
+        if self.autopilot is not None and not o.said and (
+                o.heartbeat is not None or o.frames >= OTHER_FRAMES_BEFORE_SAYING):
             self._say_ignored(recv_s, sysid)
 
     def _say_ignored(self, recv_s, sysid, final: bool = False) -> None:
         o = self._others[sysid]
-        if o[2] or (o[1] is None and not final and o[0] < OTHER_FRAMES_BEFORE_SAYING):
+        if o.said or (o.heartbeat is None and not final and o.frames < OTHER_FRAMES_BEFORE_SAYING):
             return
-        o[2] = True
-        if o[1] is None:
+        o.said = True
+        if o.heartbeat is None:
             what, hint = "no heartbeat heard", f"; --sysid {sysid} to monitor it instead"
         else:
-            what = describe_system(*o[1])
-            hint = "" if o[1][0] == MAV_TYPE_GCS or o[1][1] == MAV_AUTOPILOT_INVALID else \
+            what = describe_system(*o.heartbeat)
+            hint = "" if o.heartbeat.type == MAV_TYPE_GCS or o.heartbeat.autopilot == MAV_AUTOPILOT_INVALID else \
                 f"; --sysid {sysid} to monitor it instead"
         self._emit(Notice(recv_s, "ignored", f"ignoring system {sysid} ({what}): not the monitored vehicle "
                                              f"(system {self.sysid}){hint}"))
@@ -389,7 +461,7 @@ class Normaliser:
         if now_s < self._wait_hb_next:
             return
         self._wait_hb_next = now_s + WAIT_HEARTBEAT_REPEAT_S
-        heard = [f"system {sid} ({describe_system(*o[1]) if o[1] else 'no heartbeat'})"
+        heard = [f"system {sid} ({describe_system(*o.heartbeat) if o.heartbeat else 'no heartbeat'})"
                  for sid, o in sorted(self._others.items())]
         what = f"a heartbeat from system {self.sysid}" if self._asked else "an autopilot heartbeat"
         since = f"{now_s - self._wait_hb_t0:.0f} s"
@@ -403,131 +475,26 @@ class Normaliser:
 
     # ------------------------------------------------------------------ time
 
-    def _timed(self, t_us: int, recv_s: float, compid: int, fn, f) -> None:
-        """Route a ``time_boot_ms``-stamped message through the vehicle clock, then to ``fn``.
-
-        A time far behind the clock (or too far ahead) starts a *candidate*
-        time base. It is adopted only once at least ``CONFIRM_N`` messages
-        continue it, with nothing from the old one in between, over
-        ``CONFIRM_SPAN_US`` of their own time or until they catch up with
-        the old time base (a small step back): a reboot (behind by
-        ``reboot_jump_s`` or more), a step of the vehicle clock (behind by
-        less: later times are moved on by the step, so there is one
-        timeline and nothing is lost), or a jump forward. A message that
-        leaps from the candidates back to the old time base refutes them:
-        they were stale packets (a radio's buffer, a late burst after an
-        outage: dropped, counted as ``stale``) or a corrupt time
-        (``time_jump``)."""
-        if compid != self.ap_compid:
-            # another component's clock: mapped onto ours, never drives it
-            self._stream_time(("boot_ms", compid, fn.__name__), t_us, recv_s, fn, f)
-            return
-        clock = self.clock
-        t_us += clock.step_us
-        cands = self._cands
-        if cands:
-            last = clock.last_t_us
-            ct0, ct1 = cands[0][0], cands[-1][0]
-            if ct0 < last:  # behind: refuted by a leap from the candidates back to the old time base
-                back_to_old = t_us >= last - BEHIND_US and t_us - ct1 > BEHIND_US
-                goes_on = not back_to_old and t_us >= ct1 - BEHIND_US
-            else:  # ahead: refuted by a time back near the old one
-                goes_on = t_us >= ct1 - BEHIND_US
-            if goes_on:
-                cands.append((t_us, recv_s, fn, f))
-                caught_up = ct0 < last and t_us >= last - BEHIND_US
-                if len(cands) >= CONFIRM_N and (t_us - ct0 >= CONFIRM_SPAN_US or caught_up):
-                    self._adopt_candidates()
-                return
-            self._refute_candidates(f"then {t_us} us")
-        if clock.classify(t_us, recv_s, BEHIND_US) == HOLD:
-            self._cands = [(t_us, recv_s, fn, f)]
-            return
-        clock.accept(t_us, recv_s)
-        fn(f, t_us, recv_s)
-        if self.att.pending:
-            self._resolve_attitude()
-
-    def _adopt_candidates(self) -> None:
-        cands, self._cands = self._cands, []
-        clock = self.clock
-        t0, recv0 = cands[0][0], cands[0][1]
-        last = clock.last_t_us
-        if t0 < last - clock.jump_us:
-            self._reboot(t0, recv0)
-        elif t0 < last:
-            step = last - t0 + CLOCK_STEP_GAP_US  # the first new time just after the last old one
-            clock.step_us += step
-            cands = [(t + step, r, fn, f) for t, r, fn, f in cands]
-            self.streams.reset()  # the other clocks are placed on it again
-            self.stats.clock_steps += 1
-            self._emit(Notice(recv0, "clock_step",
-                              f"vehicle clock stepped back {(last - t0) * 1e-6:.2f} s at {last * 1e-6:.3f} s "
-                              f"(boot {clock.boot}): later times moved on by {step * 1e-6:.2f} s to keep one timeline"))
-        else:
-            clock.jump_to(t0, recv0)
-        for t, r, fn, f in cands:
-            clock.accept(t, r)
-            fn(f, t, r)
-        self._release_followers(cands)
-        if self.att.pending:
-            self._resolve_attitude()
-
-    def _refute_candidates(self, why: str) -> None:
-        cands, self._cands = self._cands, []
-        last = self.clock.last_t_us
-        for t, r, _fn, _f in cands:
-            if last is not None and t < last:
-                self._reject(r, "stale", f"vehicle time {t} us against {last} us, {why}: an isolated old packet", t)
-            else:
-                self._reject(r, "time_jump", f"vehicle time {t} us against {last} us, {why}", t)
-        self._release_followers()
-
-    def _stream_time(self, key, t_raw: int, recv_s: float, fn, f, est: Optional[int] = None) -> None:
-        """A time that may be on another clock (``time_usec``, other components): see StreamClocks.
-
-        While a new time base is unconfirmed these wait for its verdict, so that
-        the samples right after a reboot land in the new boot."""
-        if self._cands:
-            self._followers.append((key, t_raw, recv_s, fn, f))
-            return
-        if est is None:
-            est = self.clock.estimate(recv_s)
-        for t_us, (ffn, ff, frecv) in self.streams.map(key, t_raw, est, (fn, f, recv_s)):
-            ffn(ff, t_us, frecv)
-        if self.att.pending:
-            self._resolve_attitude()
-
-    def _untimed(self, recv_s: float, fn, f, what: str) -> None:
-        """A message without a time of its own: placed on the vehicle clock by receive time."""
-        if self._cands:
-            self._followers.append((None, None, recv_s, fn, f))
-            return
-        t_us = self.clock.estimate(recv_s)
-        if t_us is None:
-            self._reject(recv_s, "no_time", f"{what} before any timed message")
-        else:
-            fn(f, t_us, recv_s)
-
-    def _release_followers(self, cands: Optional[list] = None) -> None:
-        """Release what waited for a verdict on a new time base; after one was adopted
-        (``cands``, its messages), their receive times place them on it."""
-        followers, self._followers = self._followers, []
-        for key, t_raw, recv_s, fn, f in followers:
-            est = _estimate_on(cands, recv_s) if cands else None
-            if key is None:
-                if est is None:
-                    self._untimed(recv_s, fn, f, "untimed message")
-                else:
-                    fn(f, est, recv_s)
-            elif key[0] == "usec":
-                self._usec_stream(key[1], t_raw, recv_s, key[2], fn, f, est)
-            else:
-                self._stream_time(key, t_raw, recv_s, fn, f, est)
+    def _on_time(self, steps) -> None:
+        """Act on the time stage's steps (see :mod:`.timebase`), each before taking the next."""
+        placed = self._placed
+        for step in steps:
+            kind = type(step)
+            if kind is Placed:
+                placed[step.what](step.f, step.t_us, step.recv_s)
+            elif step is SETTLED:
+                if self.att.pending:
+                    self._resolve_attitude()
+            elif kind is NewBoot:
+                self._reboot(step.t_us, step.recv_s)
+            elif kind is ClockStepped:
+                self.stats.clock_steps += 1
+                self._emit(Notice(step.recv_s, "clock_step", step.text))
+            else:  # Refused
+                self._reject(step.recv_s, step.kind, step.detail, step.t_us)
 
     def _flush_streams(self) -> None:
-        for t_us, (ffn, ff, frecv) in self.streams.flush():
-            ffn(ff, t_us, frecv)
+        self._on_time(self.time.flush())
 
     def _settle_boot(self) -> None:
         """Release everything held for the current boot: stream ordering,
@@ -540,49 +507,26 @@ class Normaliser:
             for item in sel.decide():
                 fn(item)
         self._resolve_attitude(flush=True)
-        origin, items = self.baro_ref.finish()
-        self._baro_released(origin, items)
-        origin, items = self.gnss_ref.finish()
-        self._gnss_released(origin, items)
+        self._on_refs(self.refs.settle())
         self._ap_release(final=True)
         self._imu_out = True
         self._merge_gate()
 
     def _reboot(self, t_us: int, recv_s: float) -> None:
         self._settle_boot()  # what belongs to the old boot goes out before the Reboot event
-        last = self.clock.last_t_us
-        boot = self.clock.new_boot(t_us, recv_s)
+        last, boot = self.time.new_boot(t_us, recv_s)
         self.att.reset()
-        self.streams.reset()
-        self._run = None
-        for hist in self._rel_hist.values():
-            hist.clear()
+        self._range_run = None
+        self.refs.new_boot()
         self._imu_out = False
         self.stats.reboots += 1
         self._emit(Reboot(t_us=t_us, recv_s=recv_s, boot=boot, last_t_us=last if last is not None else 0))
 
     def _system_time(self, f, recv_s, compid) -> None:
-        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._system_time_at, f)
+        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "system_time", f))
 
     def _system_time_at(self, f, t_us, recv_s) -> None:
         self.clock.set_unix_offset(f["time_unix_usec"], t_us)
-
-    def _usec_stream(self, key, t_usec: int, recv_s: float, what: str, fn, f, est: Optional[int] = None) -> None:
-        """A ``time_usec`` stream: boot time, Unix time or none, then :meth:`_stream_time`.
-        Unix and missing times are placed by the vehicle clock: while a new time base is
-        unconfirmed they wait, and are placed on the one that holds."""
-        if self._cands and (t_usec == 0 or t_usec >= UNIX_THRESHOLD_US):
-            self._followers.append((("usec", key, what), t_usec, recv_s, fn, f))
-            return
-        t = self._usec(t_usec, recv_s, what)
-        if t is not None:
-            self._stream_time(key, t, recv_s, fn, f, est)
-
-    def _usec(self, t_usec: int, recv_s: float, what: str) -> Optional[int]:
-        t = self.clock.boot_from_usec(t_usec, recv_s)
-        if t is None:
-            self._reject(recv_s, "no_time", f"{what}: cannot place time_usec {t_usec} on the vehicle clock")
-        return t
 
     # ------------------------------------------------------------------ attitude and IMU
 
@@ -590,7 +534,8 @@ class Normaliser:
         if not _finite(f["roll"], f["pitch"], f["yaw"]):
             self._reject(recv_s, "nan", "ATTITUDE with a non-finite angle")
             return
-        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._attitude_at, quat_from_euler(f["roll"], f["pitch"], f["yaw"]))
+        q = quat_from_euler(f["roll"], f["pitch"], f["yaw"])
+        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "attitude", q))
 
     def _attitude_quaternion(self, f, recv_s, compid) -> None:
         q = (f["q1"], f["q2"], f["q3"], f["q4"])
@@ -602,7 +547,7 @@ class Normaliser:
             self._reject(recv_s, "impossible", f"ATTITUDE_QUATERNION norm {n:.3g}")
             return
         q = tuple(c / n for c in q)
-        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._attitude_at, q)
+        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "attitude", q))
 
     def _attitude_at(self, q, t_us, recv_s) -> None:
         self.att.add(t_us, q)
@@ -630,9 +575,8 @@ class Normaliser:
         return handler
 
     def _imu(self, fb, name, t_raw, usec: bool, recv_s, compid) -> None:
-        if self.imu_sel.chosen is None:
-            for it in self.imu_sel.note(name, self.clock.last_t_us):
-                self._imu_selected(it)
+        for it in self._noted(self.imu_sel, name):
+            self._imu_selected(it)
         if not _finite(*fb):
             self._reject(recv_s, "nan", f"{name} with a non-finite acceleration")
             return
@@ -640,21 +584,21 @@ class Normaliser:
             self._reject(recv_s, "impossible", f"{name} acceleration beyond 50 g")
             return
         if usec:
-            self._usec_stream((name, compid), t_raw, recv_s, name, self._imu_at, (fb, name))
+            self._on_time(self.time.usec((name, compid), t_raw, recv_s, name, "imu", (fb, name)))
         else:
-            self._timed(t_raw, recv_s, compid, self._imu_at, (fb, name))
+            self._on_time(self.time.boot_ms(t_raw, recv_s, compid, "imu", (fb, name)))
 
     def _imu_at(self, payload, t_us, recv_s) -> None:
         fb, name = payload
-        item = (t_us, recv_s, self.clock.boot, fb, name)
+        item = ImuItem(t_us, recv_s, self.clock.boot, fb, name)
         for it in self.imu_sel.offer(name, item):
             self._imu_selected(it)
 
-    def _imu_selected(self, item) -> None:
+    def _imu_selected(self, item: ImuItem) -> None:
         self.stats.imu_source = self.imu_sel.chosen
-        if not self._admit("imu", item[0], item[1], item[2]):
+        if not self._admit("imu", item.t_us, item.recv_s, item.boot):
             return
-        self.att.pending.append((item[0], item))
+        self.att.pending.append((item.t_us, item))
         self._resolve_attitude()
 
     def _resolve_attitude(self, flush: bool = False) -> None:
@@ -676,171 +620,22 @@ class Normaliser:
         if not 0.0 < p_pa < MAX_PRESSURE_PA:
             self._reject(recv_s, "impossible", f"static pressure {p_pa:.6g} Pa")
             return
-        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._pressure_at, p_pa)
+        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "pressure", p_pa))
 
     def _pressure_at(self, p_pa, t_us, recv_s) -> None:
         self._last_pressure_pa = p_pa
-        run = self._run
+        run = self._range_run
         if run is not None:
-            run[2] = p_pa if run[2] is None else min(run[2], p_pa)
-            run[3] = p_pa if run[3] is None else max(run[3], p_pa)
-        item = (t_us, recv_s, self.clock.boot, p_pa)
-        origin, items = self.baro_ref.push(item)
-        self._baro_released(origin, items)
-        if self.baro_ref.value is None:
-            self._say_waiting(self.baro_ref, recv_s)
-
-    def _baro_anchored(self, held, final):
-        """The pressure at the autopilot's reference point: each baro sample moved
-        down by the autopilot's height above that point at the same moment."""
-        a = self._anchor
-        if a is None or not held:
-            return None
-        origin, _alt, rel_kind = a
-        win = min(self.baro_ref.window_us, ANCHOR_WINDOW_US)
-        vals = []
-        t0 = None
-        complete = final
-        for t_us, _r, boot, p in held:
-            if t0 is not None and (t_us - t0 >= win or boot != b0):
-                complete = True
-                break
-            rel = self._rel_at(t_us, boot, rel_kind)
-            if rel is None:
-                continue
-            if t0 is None:
-                t0, b0 = t_us, boot
-            vals.append(p / pressure_at_height_pa(rel, 1.0))  # p was measured rel above the point
-        if vals:
-            return (sum(vals) / len(vals), origin) if complete else None
-        if origin == "home" and self._home_pos is not None:
-            # HOME_POSITION and no height above it: home is where the vehicle was when it was set
-            v = self._baro_at_home(held, final)
-            if v is not None:
-                return v, origin
-        return None
-
-    def _baro_at_home(self, held, final) -> Optional[float]:
-        """Only once no height above home came for ``startup_window_s`` after HOME_POSITION
-        (a link without GLOBAL_POSITION_INT): the pressure around it."""
-        th, bh, _ = self._home_pos
-        w = self.baro_ref.window_us
-        after = [it for it in held if (it[2] == bh and it[0] > th) or it[2] > bh]
-        if not final and (not after or after[-1][2] == bh and after[-1][0] - th < w):
-            return None  # a GLOBAL_POSITION_INT may still come
-        before = [it for it in held if it[2] == bh and th - w <= it[0] <= th]
-        if before:
-            return _mean_pressure(before)
-        if not after:
-            return None
-        t0 = after[0][0]
-        return _mean_pressure([it for it in after if it[0] - t0 <= w and it[2] == after[0][2]])
-
-    def _rel_at(self, t_us: int, boot: int, kind: str) -> Optional[float]:
-        """The autopilot's height above its reference point at ``t_us`` (None: none within 1 s)."""
-        if boot != self.clock.boot:
-            return None
-        hist = self._rel_hist[kind]
-        i = bisect.bisect_left(hist, (t_us,))
-        best = None
-        for j in (i - 1, i):
-            if 0 <= j < len(hist):
-                d = abs(hist[j][0] - t_us)
-                if d <= REL_ALT_MAX_AGE_US and (best is None or d < best[0]):
-                    best = (d, hist[j])
-        if best is None:
-            return None
-        tr, rel_m, vel_up = best[1]
-        return rel_m + vel_up * (t_us - tr) * 1e-6 if _finite(vel_up) else rel_m
-
-    def _note_rel(self, kind: str, t_us: int, rel_m: float, vel_up: float) -> None:
-        if self.baro_ref.value is not None or not _finite(rel_m):
-            return
-        hist = self._rel_hist[kind]
-        if len(hist) >= REL_HIST_MAX:
-            del hist[: REL_HIST_MAX // 2]
-        bisect.insort(hist, (t_us, rel_m, vel_up))
-
-    def _set_anchor(self, origin: str, alt_msl_m: float, rel_kind: str) -> None:
-        """The autopilot's reference point is known: fix what waits for it (first one wins)."""
-        if self._anchor is not None:
-            return
-        self._anchor = (origin, alt_msl_m, rel_kind)
-        self._point_msl = alt_msl_m
-        self._retry_references()
-
-    def _home_seen(self, origin: str, alt_msl_m: float) -> None:
-        """A home altitude from the autopilot after the reference point was fixed: a move
-        when this source's home changed and is away from the point (see the module docstring)."""
-        if not self.cfg.follow_home or self._anchor is None:
-            return
-        tol = self.cfg.home_move_min_m
-        last = self._home_last.get(origin)
-        self._home_last[origin] = alt_msl_m
-        if last is not None and abs(alt_msl_m - last) <= tol:
-            return  # the same home again
-        if abs(alt_msl_m - self._point_msl) <= tol:
-            return
-        shift = alt_msl_m - self._point_msl
-        self._point_msl = alt_msl_m
-        t_us = self.clock.last_t_us if self.clock.last_t_us is not None else 0
-        self.stats.reference_moves += 1
-        self._emit(ReferenceMoved(t_us=t_us, recv_s=self._last_recv or 0.0, boot=self.clock.boot,
-                                  alt_ref_msl_m=alt_msl_m, shift_m=shift, offset_m=alt_msl_m - self._anchor[1],
-                                  origin=origin))
-
-    def _gpi_home(self, home_msl_m: float) -> None:
-        """GLOBAL_POSITION_INT's home, followed only on a link without HOME_POSITION and only
-        once ``HOME_CONFIRM_N`` messages in a row show the same moved value."""
-        if self._home_pos is not None:
-            return  # HOME_POSITION says where home is
-        last = self._home_last.get("autopilot_home", self._point_msl)
-        tol = self.cfg.home_move_min_m
-        cands = self._gpi_home_cands
-        if last is None or abs(home_msl_m - last) <= tol:
-            cands.clear()
-            return
-        if cands and abs(home_msl_m - cands[0]) > tol:
-            cands.clear()
-        cands.append(home_msl_m)
-        if len(cands) >= HOME_CONFIRM_N:
-            cands.clear()
-            self._home_seen("autopilot_home", home_msl_m)
-
-    def _retry_references(self) -> None:
-        if self.baro_ref.value is None:
-            self._baro_released(*self.baro_ref.retry())
-        if self.gnss_ref.value is None:
-            self._gnss_released(*self.gnss_ref.retry())
-
-    def _say_waiting(self, ref: ReferenceResolver, recv_s: float) -> None:
-        if ref.kind in self._wait_said or ref.cfg.source != "home" or ref.held_span_us() < WAIT_NOTICE_US:
-            return
-        self._wait_said.add(ref.kind)
-        what = "baro" if ref.kind == "baro" else "GNSS"
-        self._emit(Notice(recv_s, "waiting_reference",
-                          f"waiting for HOME_POSITION or GLOBAL_POSITION_INT to fix the {what} height reference "
-                          f"(at most {ref.cfg.home_wait_s:g} s, then the start-up mean)"))
-
-    def _baro_released(self, origin, items) -> None:
-        if not items and origin is None:
-            return
-        p_ref = self.baro_ref.value
-        if origin is not None:
-            first = items[0] if items else None
-            alt = self._anchor[1] if origin in ANCHORED and self._anchor is not None else None
-            self._reference_event("baro", p_ref, alt, origin, first)
-        inst = self.cfg.baro_instance
-        for t_us, recv_s, boot, p_pa in items:
-            h = height_from_pressure_m(p_pa, p_ref)
-            self._guarded("baro", t_us, recv_s, boot, BaroHeight(t_us, recv_s, boot, h, p_pa, inst))
+            run.p_min = p_pa if run.p_min is None else min(run.p_min, p_pa)
+            run.p_max = p_pa if run.p_max is None else max(run.p_max, p_pa)
+        self._on_refs(self.refs.pressure(BaroItem(t_us, recv_s, self.clock.boot, p_pa)))
 
     # ------------------------------------------------------------------ GNSS
 
     def _gps_raw_int(self, f, recv_s, compid) -> None:
         fix = f["fix_type"]
         if f["alt_ellipsoid"] != 0 and fix >= self.cfg.min_fix_type:
-            self._geoid_sep_m = (f["alt_ellipsoid"] - f["alt"]) / 1000.0
+            self.refs.geoid_sep_m = (f["alt_ellipsoid"] - f["alt"]) / 1000.0
         if fix < self.cfg.min_fix_type:
             self.stats.filtered["gnss_no_fix"] += 1
             return
@@ -855,67 +650,23 @@ class Normaliser:
         sigma_m = v_acc / 1000.0 if 0 < v_acc < UINT32_MAX else None  # mm, 0 = unknown
         payload = (alt_m, sigma_m, fix, f["satellites_visible"])
         if f["time_usec"] == 0:  # not filled: placed on the vehicle clock by receive time
-            self._untimed(recv_s, self._gnss_at, payload, "GPS_RAW_INT without time")
+            self._on_time(self.time.untimed(recv_s, "gnss", payload, "GPS_RAW_INT without time"))
             return
-        self._usec_stream(("GPS_RAW_INT", compid), f["time_usec"], recv_s, "GPS_RAW_INT", self._gnss_at, payload)
+        self._on_time(self.time.usec(("GPS_RAW_INT", compid), f["time_usec"], recv_s, "GPS_RAW_INT", "gnss", payload))
 
     def _gnss_at(self, payload, t_us, recv_s) -> None:
         alt_m, sigma_m, fix, sats = payload
-        item = (t_us, recv_s, self.clock.boot, alt_m, sigma_m, fix, sats)
-        origin, items = self.gnss_ref.push(item)
-        self._gnss_released(origin, items)
-        if self.gnss_ref.value is None:
-            self._say_waiting(self.gnss_ref, recv_s)
-
-    def _gnss_anchored(self, held, final):
-        a = self._anchor
-        if a is None:
-            return None
-        origin, alt_msl, _ = a
-        if self.cfg.gnss_altitude == "msl":
-            return alt_msl, origin
-        if self._geoid_sep_m is None:
-            return None
-        return alt_msl + self._geoid_sep_m, origin
+        self._on_refs(self.refs.gnss_altitude(GnssItem(t_us, recv_s, self.clock.boot, alt_m, sigma_m, fix, sats)))
 
     def gnss_ref_msl_m(self) -> Optional[float]:
-        v = self.gnss_ref.value
-        if v is None:
-            return None
-        if self.cfg.gnss_altitude == "msl":
-            return v
-        return v - self._geoid_sep_m if self._geoid_sep_m is not None else None
-
-    def _gnss_released(self, origin, items) -> None:
-        if origin is not None:
-            self._reference_event("gnss", self.gnss_ref.value, self.gnss_ref_msl_m(), origin, items[0] if items else None)
-        ref = self.gnss_ref.value
-        for t_us, recv_s, boot, alt_m, sigma_m, fix, sats in items:
-            self._guarded("gnss", t_us, recv_s, boot, GnssHeight(t_us, recv_s, boot, alt_m - ref, alt_m, sigma_m, fix, sats))
-        if origin is not None:
-            self._ap_release(final=False)
+        """The GNSS reference as an altitude MSL (None: not known yet)."""
+        return self.refs.gnss_ref_msl_m()
 
     def _home_position(self, f, recv_s, compid) -> None:
         alt_m = f["altitude"] / 1000.0  # mm MSL
         if not _finite(alt_m):
             return
-        if self._home_pos is None:
-            t_us = self.clock.last_t_us if self.clock.last_t_us is not None else 0
-            self._home_pos = (t_us, self.clock.boot, alt_m)
-        if self._anchor is None:
-            self._home_last["home"] = alt_m
-            self._set_anchor("home", alt_m, "GLOBAL_POSITION_INT")
-        else:
-            self._home_seen("home", alt_m)
-
-    def _reference_event(self, kind, value, alt_msl, origin, item) -> None:
-        if item:
-            t_us, recv_s, boot = item[0], item[1], item[2]
-        else:  # fixed before any sample needed it (from the autopilot's home)
-            t_us = self.clock.last_t_us if self.clock.last_t_us is not None else 0
-            recv_s, boot = (self._last_recv or 0.0), self.clock.boot
-        self.stats.references[kind] = ReferenceRecord(value, origin, alt_msl)
-        self._emit(ReferenceSet(t_us=t_us, recv_s=recv_s, boot=boot, kind=kind, value=value, alt_ref_msl_m=alt_msl, origin=origin))
+        self._on_refs(self.refs.home_position(alt_m))
 
     # ------------------------------------------------------------------ rangefinder
 
@@ -923,24 +674,26 @@ class Normaliser:
         if f["orientation"] != MAV_SENSOR_ROTATION_PITCH_270:
             self.stats.filtered["range_not_downward"] += 1
             return
-        self._note(self.range_sel, "DISTANCE_SENSOR", self._range_selected)
+        for it in self._noted(self.range_sel, "DISTANCE_SENSOR"):
+            self._range_selected(it)
         if f["signal_quality"] != DISTANCE_SENSOR_QUALITY_INVALID:
-            self._range_last["DISTANCE_SENSOR"] = (recv_s, f["current_distance"] / 100.0)
-        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._distance_sensor_at, f)
+            self._range_last["DISTANCE_SENSOR"] = _RangeReading(recv_s, f["current_distance"] / 100.0)
+        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "distance_sensor", f))
 
     def _distance_sensor_at(self, f, t_us, recv_s) -> None:
-        item = (t_us, recv_s, self.clock.boot, "DISTANCE_SENSOR", f)
+        item = RangeItem(t_us, recv_s, self.clock.boot, "DISTANCE_SENSOR", f)
         for it in self.range_sel.offer("DISTANCE_SENSOR", item):
             self._range_selected(it)
 
     def _rangefinder(self, f, recv_s, compid) -> None:
         if _finite(f["distance"]):
-            self._range_last["RANGEFINDER"] = (recv_s, f["distance"])
-        self._untimed(recv_s, self._rangefinder_at, f, "RANGEFINDER")  # no time field: see clock.py
+            self._range_last["RANGEFINDER"] = _RangeReading(recv_s, f["distance"])
+        self._on_time(self.time.untimed(recv_s, "rangefinder", f, "RANGEFINDER"))  # no time field: see clock.py
 
     def _rangefinder_at(self, f, t_us, recv_s) -> None:
-        self._note(self.range_sel, "RANGEFINDER", self._range_selected)
-        item = (t_us, recv_s, self.clock.boot, "RANGEFINDER", f)
+        for it in self._noted(self.range_sel, "RANGEFINDER"):
+            self._range_selected(it)
+        item = RangeItem(t_us, recv_s, self.clock.boot, "RANGEFINDER", f)
         for it in self.range_sel.offer("RANGEFINDER", item):
             self._range_selected(it)
 
@@ -970,11 +723,11 @@ class Normaliser:
                          value_m=range_m, min_m=lo_m, max_m=hi_m)
             return
         other = self._range_last.get("RANGEFINDER" if name == "DISTANCE_SENSOR" else "DISTANCE_SENSOR")
-        if other is not None and abs(recv_s - other[0]) <= self.cfg.range_cross_max_age_s:
-            tol = max(self.cfg.range_cross_tol_m, self.cfg.range_cross_tol_frac * max(range_m, other[1]))
-            if abs(range_m - other[1]) > tol:
+        if other is not None and abs(recv_s - other.recv_s) <= self.cfg.range_cross_max_age_s:
+            tol = max(self.cfg.range_cross_tol_m, self.cfg.range_cross_tol_frac * max(range_m, other.range_m))
+            if abs(range_m - other.range_m) > tol:
                 self._reject(recv_s, "disagrees", f"{name} {range_m:.2f} m but the same rangefinder's "
-                             f"{'RANGEFINDER' if name == 'DISTANCE_SENSOR' else 'DISTANCE_SENSOR'} {other[1]:.2f} m",
+                             f"{'RANGEFINDER' if name == 'DISTANCE_SENSOR' else 'DISTANCE_SENSOR'} {other.range_m:.2f} m",
                              t_us, boot, sensor="range", value_m=range_m, min_m=lo_m, max_m=hi_m)
                 return
         if self._stuck(raw, t_us, boot):
@@ -994,21 +747,22 @@ class Normaliser:
         self._yield("range", RangeHeight(t_us, recv_s, boot, range_m * c, range_m, name, lo_m, hi_m))
 
     def _stuck(self, raw, t_us, boot) -> bool:
-        run = self._run
+        run = self._range_run
         p = self._last_pressure_pa
-        if run is None or run[0] != raw or run[4] != boot or t_us < run[1]:
-            self._run = [raw, t_us, p, p, boot]
+        if run is None or run.raw != raw or run.boot != boot or t_us < run.t_start_us:
+            self._range_run = _RangeRun(raw, t_us, p, p, boot)
             return False
-        if t_us - run[1] < self._stuck_us or run[2] is None:
+        if t_us - run.t_start_us < self._stuck_us or run.p_min is None:
             return False
-        moved_m = height_from_pressure_m(run[2], run[3])  # p_min above p_max
+        moved_m = height_from_pressure_m(run.p_min, run.p_max)  # p_min above p_max
         return moved_m >= self.cfg.rangefinder_stuck_min_move_m
 
     # ------------------------------------------------------------------ autopilot's own height
 
     def _global_position_int(self, f, recv_s, compid) -> None:
-        self._note(self.ap_sel, "GLOBAL_POSITION_INT", self._ap_selected)
-        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._global_position_int_at, f)
+        for it in self._noted(self.ap_sel, "GLOBAL_POSITION_INT"):
+            self._ap_selected(it)
+        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "global_position_int", f))
 
     def _global_position_int_at(self, f, t_us, recv_s) -> None:
         rel_m = f["relative_alt"] / 1000.0  # mm above home
@@ -1018,20 +772,11 @@ class Normaliser:
         # (before arming old ArduPilot reports relative_alt == alt: home at 0)
         if (f["lat"] != 0 or f["lon"] != 0) and abs(f["alt"] - f["relative_alt"]) >= HOME_UNSET_MM:
             home_m = (f["alt"] - f["relative_alt"]) / 1000.0
-            if self._anchor is not None:
-                # above the point the references are fixed at, whatever home the autopilot has now
-                rel_m = f["alt"] / 1000.0 - self._anchor[1]
-            self._note_rel("GLOBAL_POSITION_INT", t_us, rel_m, vel_up)
-            if self._anchor is None:
-                self._home_last["autopilot_home"] = home_m
-                self._set_anchor("autopilot_home", home_m, "GLOBAL_POSITION_INT")
-            else:
-                self._gpi_home(home_m)
-                if self.baro_ref.value is None and self.baro_ref.held:
-                    self._baro_released(*self.baro_ref.retry())
+            rel_m, out = self.refs.autopilot_home(t_us, f["alt"] / 1000.0, home_m, rel_m, vel_up)
+            self._on_refs(out)
         # alt: mm MSL, none without a position (ArduPilot then sends 0 or its uncorrected baro altitude)
         alt_msl = f["alt"] / 1000.0 if f["lat"] != 0 or f["lon"] != 0 else None
-        item = (t_us, recv_s, self.clock.boot, alt_msl, rel_m, vel_up)
+        item = AutopilotItem(t_us, recv_s, self.clock.boot, alt_msl, rel_m, vel_up)
         for it in self.ap_sel.offer("GLOBAL_POSITION_INT", item):
             self._ap_selected(it)
 
@@ -1039,19 +784,16 @@ class Normaliser:
         if not _finite(f["z"]):
             self._reject(recv_s, "nan", "LOCAL_POSITION_NED with a non-finite z")
             return
-        self._note(self.ap_sel, "LOCAL_POSITION_NED", self._ap_selected)
-        self._timed(f["time_boot_ms"] * 1000, recv_s, compid, self._local_position_ned_at, f)
+        for it in self._noted(self.ap_sel, "LOCAL_POSITION_NED"):
+            self._ap_selected(it)
+        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "local_position_ned", f))
 
     def _local_position_ned_at(self, f, t_us, recv_s) -> None:
         up_m = -f["z"]  # z is down, m, above the EKF origin
         vz = f["vz"]
         vel_up = -vz if _finite(vz) else math.nan
-        self._note_rel("LOCAL_POSITION_NED", t_us, up_m, vel_up)
-        if self._anchor is None and self._ekf_origin_msl_m is not None:
-            self._set_anchor("ekf_origin", self._ekf_origin_msl_m, "LOCAL_POSITION_NED")
-        elif self._anchor is not None and self.baro_ref.value is None and self.baro_ref.held:
-            self._baro_released(*self.baro_ref.retry())
-        item = (t_us, recv_s, self.clock.boot, None, up_m, vel_up)
+        self._on_refs(self.refs.local_position(t_us, up_m, vel_up))
+        item = AutopilotItem(t_us, recv_s, self.clock.boot, None, up_m, vel_up)
         for it in self.ap_sel.offer("LOCAL_POSITION_NED", item):
             self._ap_selected(it)
 
@@ -1059,14 +801,12 @@ class Normaliser:
         alt_m = f["altitude"] / 1000.0  # mm MSL
         if not _finite(alt_m):
             return
-        self._ekf_origin_msl_m = alt_m
-        if self._anchor is None and self._rel_hist["LOCAL_POSITION_NED"]:
-            self._set_anchor("ekf_origin", alt_m, "LOCAL_POSITION_NED")
+        self._on_refs(self.refs.ekf_origin(alt_m))
 
-    def _note(self, sel, name: str, then) -> None:
-        if sel.chosen is None:
-            for it in sel.note(name, self.clock.last_t_us):
-                then(it)
+    def _noted(self, sel: SourceSelector, name: str) -> list:
+        """A message of source ``name`` arrived: the items held for the source
+        choice it settles, if it does (else none)."""
+        return sel.note(name, self.clock.last_t_us) if sel.chosen is None else []
 
     def _ap_selected(self, item) -> None:
         self.stats.autopilot_source = self.ap_sel.chosen
@@ -1080,9 +820,9 @@ class Normaliser:
         src = self.ap_sel.chosen
         if self._ap_mode is None:
             ref_msl = self.gnss_ref_msl_m()
-            if ref_msl is not None and (src == "GLOBAL_POSITION_INT" or self._ekf_origin_msl_m is not None):
+            if ref_msl is not None and (src == "GLOBAL_POSITION_INT" or self.refs.ekf_origin_msl_m is not None):
                 self._ap_mode = "gnss_reference"
-            elif final or held[-1][2] != held[0][2] or held[-1][0] - held[0][0] >= self._gnss_wait_us:
+            elif final or held[-1].boot != held[0].boot or held[-1].t_us - held[0].t_us >= self._gnss_wait_us:
                 self._ap_mode = "autopilot_home" if src == "GLOBAL_POSITION_INT" else "ekf_origin"
             else:
                 return
@@ -1097,7 +837,7 @@ class Normaliser:
                         continue
                     h = alt_msl - ref_msl
                 else:
-                    h = local_up + self._ekf_origin_msl_m - ref_msl
+                    h = local_up + self.refs.ekf_origin_msl_m - ref_msl
             else:
                 h = local_up
             self._guarded("autopilot", t_us, recv_s, boot, AutopilotHeight(t_us, recv_s, boot, h, src, vel_up))
@@ -1121,7 +861,7 @@ class Normaliser:
             return
         self.stats.samples[kind] += 1
         if kind not in GATED or (self._imu_out and not self._pre_imu):
-            self.out.append(sample)
+            self._out.append(sample)
             if kind == "imu":
                 self._imu_out = True  # what waited joins the output at the end of this frame (_merge_gate)
             return
@@ -1139,7 +879,7 @@ class Normaliser:
             return
         self._pre_imu = []
         held.sort(key=_sample_t)
-        out = self.out
+        out = self._out
         merged: List[object] = []
         i, n = 0, len(held)
         boot = held[0].boot
@@ -1151,7 +891,24 @@ class Normaliser:
                     i += 1
             merged.append(item)
         merged.extend(held[i:])
-        out[:] = merged  # the same list: a live source holds it
+        self._out = merged
+
+    def _on_refs(self, out: list) -> None:
+        """Pass on what the reference stage releases (see :mod:`.heightref`)."""
+        for x in out:
+            kind = type(x)
+            if kind is BaroHeight:
+                self._guarded("baro", x.t_us, x.recv_s, x.boot, x)
+            elif kind is GnssHeight:
+                self._guarded("gnss", x.t_us, x.recv_s, x.boot, x)
+            elif x is GNSS_FIXED:
+                self._ap_release(final=False)
+            else:
+                if kind is ReferenceSet:
+                    self.stats.references[x.kind] = ReferenceRecord(x.value, x.origin, x.alt_ref_msl_m)
+                elif kind is ReferenceMoved:
+                    self.stats.reference_moves += 1
+                self._emit(x)
 
     def _guarded(self, kind: str, t_us: int, recv_s: float, boot: int, sample) -> None:
         if self._admit(kind, t_us, recv_s, boot):
@@ -1162,7 +919,7 @@ class Normaliser:
             self.stats.filtered["vehicle_class"] += 1
             return
         self.stats.events[type(event).__name__] += 1
-        self.out.append(event)
+        self._out.append(event)
 
     def _reject(self, recv_s: float, kind: str, detail: str, t_us: Optional[int] = None, boot: Optional[int] = None,
                 sensor: Optional[str] = None, value_m: float = math.nan, min_m: float = math.nan,
@@ -1181,9 +938,6 @@ class Normaliser:
         st.duration_s = self.clock.total_duration_us / 1e6
 
 
-ANCHORED = ("home", "autopilot_home", "ekf_origin")
-
-
 def describe_system(mav_type: int, autopilot: int) -> str:
     """``quadrotor, ArduPilot``: a HEARTBEAT's type and autopilot in words."""
     def word(enum: str, value: int, prefix: str) -> str:
@@ -1197,29 +951,5 @@ def describe_system(mav_type: int, autopilot: int) -> str:
     return f"{word('MAV_TYPE', mav_type, 'MAV_TYPE_')}, {ap}"
 
 
-def _estimate_on(cands, recv_s: float) -> int:
-    """Vehicle time at ``recv_s`` on the time base of ``cands`` ((t_us, recv_s, ...), in order):
-    from the latest candidate received by then (the first one for earlier receive times)."""
-    t0, r0 = cands[0][0], cands[0][1]
-    for c in cands:
-        if c[1] <= recv_s:
-            t0, r0 = c[0], c[1]
-        else:
-            break
-    return t0 + int(round((recv_s - r0) * 1e6))
-
-
 def _sample_t(s) -> int:
     return s.t_us
-
-
-def _item_t(item):
-    return item[0], item[2]
-
-
-def _mean_pressure(items) -> float:
-    return sum(it[3] for it in items) / len(items)
-
-
-def _mean_alt(items) -> float:
-    return sum(it[3] for it in items) / len(items)

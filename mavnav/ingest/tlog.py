@@ -35,21 +35,15 @@ class TlogSource:
         reader = TlogReader(self.path, WANTED)
         stats = self.stats = IngestStats(source=str(self.path))
         norm = Normaliser(self.config, self.sysid, stats)
-        out = norm.out
         feed = norm.feed
         problem = norm.problem
         for item in reader:
-            if type(item) is tuple:
-                feed(*item)
-            else:
-                problem(item)
+            out = feed(*item) if type(item) is tuple else problem(item)
             if out:
                 yield from out
-                out.clear()
-        norm.finish()
+        out = norm.finish()
         fill_message_stats(stats, reader, norm.sysid)
         yield from out
-        out.clear()
 
 
 def fill_message_stats(stats: IngestStats, reader, sysid: Optional[int]) -> None:

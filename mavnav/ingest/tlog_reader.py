@@ -32,7 +32,21 @@ _CHUNK = 1 << 20
 _PROBE = 1 << 20
 _MIN_RECORD = 8 + wire.HEADER_LEN_V1 + 2
 
+_MARGIN = 8 + wire.MAX_FRAME_LEN  # the longest record: a refill is due when less is left
+_NO_FRAME = (wire.NEED_MORE, 0, 0, 0, 0, 0)  # parse status of a record whose frame starts past the buffer
+
 Item = Union[tuple, Rejected]
+
+
+def _plausible(ts: int, last_ts: Optional[int]) -> bool:
+    """A record's timestamp is plausible within a day of the last accepted
+    one, or (the first) between 2000 and 2100."""
+    return abs(ts - last_ts) <= _TS_JUMP_US if last_ts is not None else _TS_MIN_US <= ts <= _TS_MAX_US
+
+
+def _seconds(last_ts: Optional[int]) -> float:
+    """The time of a problem: the last accepted timestamp (s), 0 before any."""
+    return last_ts / 1e6 if last_ts else 0.0
 
 
 def _good_record_after(buf, pos: int, n: int, last_ts, stop: int = -1) -> bool:
@@ -45,8 +59,7 @@ def _good_record_after(buf, pos: int, n: int, last_ts, stop: int = -1) -> bool:
     q = wire.next_start(buf, pos + 9, n if stop < 0 else min(stop, n))
     while q >= 0:
         if wire.parse_frame(buf, q, n)[0] == wire.OK:
-            ts = int.from_bytes(buf[q - 8 : q], "big")
-            if abs(ts - last_ts) <= _TS_JUMP_US if last_ts is not None else _TS_MIN_US <= ts <= _TS_MAX_US:
+            if _plausible(int.from_bytes(buf[q - 8 : q], "big"), last_ts):
                 return True
         q = wire.next_start(buf, q + 1, n if stop < 0 else min(stop, n))
     return False
@@ -97,96 +110,139 @@ class TlogReader:
         raise InputError(f"{self.path}: not a tlog (no MAVLink record with a valid checksum found)")
 
     def __iter__(self) -> Iterator[Item]:
-        parse = wire.parse_frame
-        OK, NEED_MORE, UNKNOWN_ID = wire.OK, wire.NEED_MORE, wire.UNKNOWN_ID
-        wanted = self.wanted
-        counts = self.counts
-        last_ts = None
-        in_step = True
-        bad_from = -1  # absolute offset where the current garbage run started
-        base = 0  # absolute offset of buf[0]
-        buf = b""
-        pos = 0
-        eof = False
-        margin = 8 + wire.MAX_FRAME_LEN
+        w = _Walk()
         with open(self.path, "rb") as f:
             while True:
-                if not eof and len(buf) - pos < margin:
-                    data = f.read(self.chunk_size)
-                    self.bytes_read += len(data)
-                    base += pos
-                    buf = buf[pos:] + data
-                    pos = 0
-                    if not data:
-                        eof = True
-                n = len(buf)
-                limit = n if eof else n - margin
-                if pos >= n:
+                self._refill(f, w)
+                if w.pos >= len(w.buf):
                     break
-                while pos <= limit and pos < n:
-                    p = pos + 8
-                    if p >= n:
-                        st = NEED_MORE
-                    else:
-                        st, flen, msgid, sysid, compid, ps = parse(buf, p, n)
-                    if st == OK or (
-                        st == UNKNOWN_ID and in_step and not _good_record_after(buf, pos, n, last_ts, p + flen + 8)
-                    ):
-                        ts = int.from_bytes(buf[pos:p], "big")
-                        plausible = (
-                            abs(ts - last_ts) <= _TS_JUMP_US
-                            if last_ts is not None
-                            else _TS_MIN_US <= ts <= _TS_MAX_US
-                        )
-                        if plausible:
-                            if bad_from >= 0:
-                                skipped = base + pos - bad_from
-                                self.garbage_bytes += skipped
-                                bad_from = -1
-                                yield Rejected(ts / 1e6, "garbage", f"{skipped} bytes skipped")
-                            last_ts = ts
-                            in_step = True
-                            self.frames += 1
-                            counts[(sysid, msgid)] += 1
-                            pos = p + flen
-                            if st == OK:
-                                if msgid in wanted:
-                                    yield (ts / 1e6, msgid, sysid, compid, buf[ps : ps + buf[p + 1]])
-                            else:
-                                self.unknown_frames += 1
-                                yield Rejected(ts / 1e6, "unknown_message", f"msgid {msgid}")
-                            continue
-                    if st == NEED_MORE and eof and not _good_record_after(buf, pos, n, last_ts):
-                        # a record cut short by the end of the file (no good record follows it)
-                        if bad_from < 0:
-                            bad_from = base + pos
-                        self.truncated_at = base + pos
-                        self.truncated_bytes += base + n - bad_from
-                        bad_from = -1
-                        yield Rejected(last_ts / 1e6 if last_ts else 0.0, "truncated", f"{n - pos} bytes at end of file")
-                        pos = n
-                        break
-                    if st == NEED_MORE and not eof:
-                        break  # refill
-                    if st == wire.BAD_CRC and in_step:
-                        self.crc_errors += 1
-                        yield Rejected(last_ts / 1e6 if last_ts else 0.0, "crc", f"{wire.msg_name(msgid)} from {sysid}")
-                    # out of step: look for the next plausible record start
-                    if bad_from < 0:
-                        bad_from = base + pos
-                    in_step = False
-                    q = wire.next_start(buf, pos + 9, n)
-                    if q < 0:
-                        pos = max(pos + 1, n - 8) if not eof else n
-                        if eof:
-                            self.garbage_bytes += base + n - bad_from
-                            yield Rejected(last_ts / 1e6 if last_ts else 0.0, "garbage", f"{base + n - bad_from} bytes skipped at end of file")
-                            bad_from = -1
-                        break
-                    pos = q - 8
-                if eof and pos >= len(buf):
+                yield from self._records(w)
+                if w.eof and w.pos >= len(w.buf):
                     break
-        if bad_from >= 0:
-            self.garbage_bytes += base + len(buf) - bad_from
-            yield Rejected(last_ts / 1e6 if last_ts else 0.0, "garbage", "bytes skipped at end of file")
+        if w.bad_from >= 0:
+            self.garbage_bytes += w.base + len(w.buf) - w.bad_from
+            yield Rejected(_seconds(w.last_ts), "garbage", "bytes skipped at end of file")
 
+    def _refill(self, f, w: _Walk) -> None:
+        """Read the next chunk behind what is left of the buffer, once less than a record is left."""
+        if not w.eof and len(w.buf) - w.pos < _MARGIN:
+            data = f.read(self.chunk_size)
+            self.bytes_read += len(data)
+            w.base += w.pos
+            w.buf = w.buf[w.pos:] + data
+            w.pos = 0
+            if not data:
+                w.eof = True
+
+    def _records(self, w: _Walk) -> Iterator[Item]:
+        """The records of the buffer from ``w.pos``, until a refill is due or the buffer ends.
+        The hot loop: its state in locals, stored in ``w`` around the rare paths."""
+        parse = wire.parse_frame
+        OK, UNKNOWN_ID = wire.OK, wire.UNKNOWN_ID
+        wanted = self.wanted
+        counts = self.counts
+        buf, base = w.buf, w.base
+        n = len(buf)
+        limit = n if w.eof else n - _MARGIN
+        pos, last_ts, in_step, bad_from = w.pos, w.last_ts, w.in_step, w.bad_from
+        while pos <= limit and pos < n:
+            p = pos + 8
+            st, flen, msgid, sysid, compid, ps = parse(buf, p, n) if p < n else _NO_FRAME
+            if st == OK or (
+                st == UNKNOWN_ID and in_step and not _good_record_after(buf, pos, n, last_ts, p + flen + 8)
+            ):
+                ts = int.from_bytes(buf[pos:p], "big")
+                # _plausible(ts, last_ts), inline: the hot path
+                if abs(ts - last_ts) <= _TS_JUMP_US if last_ts is not None else _TS_MIN_US <= ts <= _TS_MAX_US:
+                    if bad_from >= 0:
+                        yield self._garbage_ends(ts, base + pos - bad_from)
+                        bad_from = -1
+                    last_ts = ts
+                    in_step = True
+                    self.frames += 1
+                    counts[(sysid, msgid)] += 1
+                    pos = p + flen
+                    if st != OK:
+                        self.unknown_frames += 1
+                        yield Rejected(ts / 1e6, "unknown_message", f"msgid {msgid}")
+                    elif msgid in wanted:
+                        yield (ts / 1e6, msgid, sysid, compid, buf[ps : ps + buf[p + 1]])
+                    continue
+            w.pos, w.last_ts, w.in_step, w.bad_from = pos, last_ts, in_step, bad_from
+            stop = yield from self._not_accepted(w, st, msgid, sysid)
+            pos, in_step, bad_from = w.pos, w.in_step, w.bad_from
+            if stop:
+                break
+        w.pos, w.last_ts, w.in_step, w.bad_from = pos, last_ts, in_step, bad_from
+
+    def _garbage_ends(self, ts: int, skipped: int) -> Rejected:
+        """A good record after ``skipped`` bytes of garbage."""
+        self.garbage_bytes += skipped
+        return Rejected(ts / 1e6, "garbage", f"{skipped} bytes skipped")
+
+    def _not_accepted(self, w: _Walk, st: int, msgid: int, sysid: int):
+        """No record to accept at ``w.pos`` (parse status ``st``): more bytes
+        needed, a record cut short by the end of the file, a CRC error, or
+        garbage; then on to the next record start. Returns whether the walk
+        of this buffer stops (a refill, or the end of the file)."""
+        if st == wire.NEED_MORE:
+            if w.eof and not _good_record_after(w.buf, w.pos, len(w.buf), w.last_ts):
+                yield self._truncated(w)
+                return True
+            if not w.eof:
+                return True  # refill
+        if st == wire.BAD_CRC and w.in_step:
+            self.crc_errors += 1
+            yield Rejected(_seconds(w.last_ts), "crc", f"{wire.msg_name(msgid)} from {sysid}")
+        return (yield from self._resync(w))
+
+    def _truncated(self, w: _Walk) -> Rejected:
+        """A record cut short by the end of the file (no good record follows it): the walk ends."""
+        n, pos = len(w.buf), w.pos
+        if w.bad_from < 0:
+            w.bad_from = w.base + pos
+        self.truncated_at = w.base + pos
+        self.truncated_bytes += w.base + n - w.bad_from
+        w.bad_from = -1
+        w.pos = n
+        return Rejected(_seconds(w.last_ts), "truncated", f"{n - pos} bytes at end of file")
+
+    def _resync(self, w: _Walk):
+        """Out of step: on to the next plausible record start. Returns whether
+        the walk of this buffer stops (none in it: a refill, or garbage to the
+        end of the file)."""
+        buf, n = w.buf, len(w.buf)
+        if w.bad_from < 0:
+            w.bad_from = w.base + w.pos
+        w.in_step = False
+        q = wire.next_start(buf, w.pos + 9, n)
+        if q >= 0:
+            w.pos = q - 8
+            return False
+        if not w.eof:
+            w.pos = max(w.pos + 1, n - 8)
+            return True
+        w.pos = n
+        skipped = w.base + n - w.bad_from
+        self.garbage_bytes += skipped
+        w.bad_from = -1
+        yield Rejected(_seconds(w.last_ts), "garbage", f"{skipped} bytes skipped at end of file")
+        return True
+
+
+class _Walk:
+    """Where a :class:`TlogReader` walk is: the buffer (its first byte at file
+    offset ``base``), the position in it, whether the file is read to its
+    end, the last accepted timestamp (us), whether the reader is in step, and
+    where the current run of garbage started (file offset; -1: none)."""
+
+    __slots__ = ("buf", "base", "pos", "eof", "last_ts", "in_step", "bad_from")
+
+    def __init__(self) -> None:
+        self.buf = b""
+        self.base = 0
+        self.pos = 0
+        self.eof = False
+        self.last_ts: Optional[int] = None
+        self.in_step = True
+        self.bad_from = -1

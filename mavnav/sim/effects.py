@@ -50,19 +50,15 @@ from ..atmosphere import pressure_at_height_pa
 from ..samples import (
     AutopilotHeight,
     BaroHeight,
-    Gap,
     GnssHeight,
     LinkLost,
     LinkRecovered,
     RangeHeight,
     Reboot,
-    ReferenceSet,
     Rejected,
     SpecificForceUp,
 )
 from .scenario import Fault
-
-STEP_RAMP_NOISE = ("gnss_step", "gnss_ramp", "gnss_noise", "baro_step", "baro_ramp")
 
 
 def height_error_m(fault: Fault, t_s, rng: Optional[np.random.Generator] = None):

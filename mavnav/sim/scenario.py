@@ -540,9 +540,6 @@ def load_scenario(path: Union[str, Path]) -> Scenario:
     return scenario_from_dict(data, origin=origin)
 
 
-def fault_errors_one_line(exc: ValidationError, origin: str) -> ConfigError:
-    return validation_error(exc, origin, _describe)
-
 
 __all__: List[str] = [
     "Scenario",

@@ -93,7 +93,6 @@ from .mavlink_statustext import (
 
 log = logging.getLogger("mavnav.sinks.mavlink_out")
 
-MAV_COMP_ID_AUTOPILOT1 = mavlink2.MAV_COMP_ID_AUTOPILOT1
 HEARTBEAT_PERIOD_US = 1_000_000
 _COMMAND_POLL_S = 0.02
 _MAX_READS_PER_POLL = 200
@@ -123,7 +122,8 @@ _QUALITY = {"nominal": 100, "caution": 50, "unavailable": 50, "alarm": -1}
 
 @dataclass(frozen=True)
 class EmitConfig:
-    """What the MAVLink output sends and as whom. Bad values are refused by name."""
+    """What the MAVLink output sends and as whom. Bad values are refused by name,
+    by the rules of the configuration's ``emit:`` section (:class:`~mavnav.config.EmitSection`)."""
 
     sysid: int = 1
     compid: int = 191
@@ -141,22 +141,18 @@ class EmitConfig:
     command_attempts: int = 3
 
     def __post_init__(self) -> None:
-        if not 1 <= self.sysid <= 255:
-            raise ConfigError(f"emit sysid {self.sysid}: must be 1..255")
-        if not 1 <= self.compid <= 255:
-            raise ConfigError(f"emit compid {self.compid}: must be 1..255")
-        if self.compid == MAV_COMP_ID_AUTOPILOT1:
-            raise ConfigError("emit compid 1 is the autopilot's; mavnav never impersonates it (use e.g. 191)")
-        if not (math.isfinite(self.altitude_rate_hz) and 0 < self.altitude_rate_hz <= 100):
-            raise ConfigError(f"altitude rate {self.altitude_rate_hz}: must be in (0, 100] Hz")
-        if not (math.isfinite(self.statustext_interval_s) and self.statustext_interval_s >= 0):
-            raise ConfigError(f"statustext interval {self.statustext_interval_s}: must be >= 0 s")
+        from pydantic import ValidationError
+
+        from ..config import EmitSection, validation_error
+
+        try:
+            EmitSection(sysid=self.sysid, compid=self.compid, altitude_rate_hz=self.altitude_rate_hz,
+                        statustext_interval_s=self.statustext_interval_s, signing_link_id=self.signing_link_id,
+                        command_timeout_s=self.command_timeout_s, command_attempts=self.command_attempts)
+        except ValidationError as exc:
+            raise validation_error(exc, "emit") from None
         if self.signing_key is not None and len(self.signing_key) != 32:
             raise ConfigError("a MAVLink 2 signing key has 32 bytes")
-        if not 0 <= self.signing_link_id <= 255:
-            raise ConfigError(f"signing link id {self.signing_link_id}: must be 0..255")
-        if self.command_attempts < 1 or not self.command_timeout_s > 0:
-            raise ConfigError("command attempts must be >= 1 and the timeout > 0")
 
 
 class _Ticker:

@@ -119,6 +119,3 @@ class OnboardRecord:
                 out.append(what)
         return out
 
-
-def empty_f() -> np.ndarray:
-    return np.zeros(0, dtype=float)

@@ -264,6 +264,42 @@ class _Builder:
     # ------------------------------------------------------------------ merge
 
     def samples(self) -> Iterator[object]:
+        st = self.stats
+        self._columns()
+        if not self.cols:
+            st.duration_s = 0.0
+            return
+        t0_us, tags, idx, verdicts, gaps = self._merged_order()
+        by_tag = {c[1]: [a.tolist() if hasattr(a, "tolist") else a for a in c] for c in self.cols}
+        if st.not_applicable:
+            st.events["Notice"] += 1
+            yield Notice(t0_us * 1e-6, "not_applicable", notice_text(st.not_applicable))
+        yield from self.refs
+        st.events["ReferenceSet"] += len(self.refs)
+        make = self._sample_makers()
+        samples = st.samples
+        for tag, i, verdict, gap_s in zip(tags, idx, verdicts, gaps):
+            c = by_tag[tag]
+            t = c[0][i]
+            recv = t * 1e-6
+            if tag not in make:  # _RANGE_REJ, _IMU_REJ
+                st.events["Rejected"] += 1
+                yield self._rejected(tag, c, i, t, recv)
+                continue
+            kind, s = make[tag](t, recv, c, i)
+            if verdict:  # cannot happen after the decoder's sort; kept as the tlog rule
+                st.rejected[_VERDICT[verdict]] += 1
+                continue
+            if gap_s > 0.0:
+                st.gaps.append(GapRecord(kind, t, 0, gap_s))
+                st.events["Gap"] += 1
+                yield Gap(t_us=t, recv_s=recv, boot=0, kind=kind, length_s=gap_s)
+            samples[kind] += 1
+            yield s
+
+    def _columns(self) -> None:
+        """Decode every series into ``self.cols`` (and the references into
+        ``self.refs``); the log's description into the stats."""
         rec, st = self.rec, self.stats
         st.vehicle = VehicleInfo(sysid=1)
         st.format = rec.format
@@ -281,9 +317,12 @@ class _Builder:
         st.bytes_read = rec.bytes_read
         st.damage = list(rec.damage)
         st.missing = rec.missing()
-        if not self.cols:
-            st.duration_s = 0.0
-            return
+
+    def _merged_order(self) -> tuple:
+        """Every column's items merged by time (ties by tag): ``(first time (us),
+        tags, indices, verdicts, gaps)``, the last four in that order, as lists;
+        the duration and rates into the stats."""
+        st = self.stats
         ts = np.concatenate([c[0] for c in self.cols])
         tags = np.concatenate([np.full(c[0].size, c[1], dtype=np.int8) for c in self.cols])
         idx = np.concatenate([np.arange(c[0].size) for c in self.cols])
@@ -296,59 +335,45 @@ class _Builder:
             if sel.size:
                 verdicts_a[sel], gaps_a[sel] = _guard_series(ts_o[sel], float(self.cfg.gap_min_s * 1e6),
                                                              float(self.cfg.gap_factor))
-        verdicts, gaps = verdicts_a.tolist(), gaps_a.tolist()
         t0, t1 = int(ts.min()), int(ts.max())
         st.duration_s = (t1 - t0) / 1e6
         dur = st.duration_s
         st.rates_hz = {k: (v / dur if dur > 0 else 0.0) for k, v in st.messages.items()}
-        by_tag = {c[1]: [a.tolist() if hasattr(a, "tolist") else a for a in c] for c in self.cols}
-        if st.not_applicable:
-            st.events["Notice"] += 1
-            yield Notice(t0 * 1e-6, "not_applicable", notice_text(st.not_applicable))
-        yield from self.refs
-        st.events["ReferenceSet"] += len(self.refs)
+        return t0, tags[order].tolist(), idx[order].tolist(), verdicts_a.tolist(), gaps_a.tolist()
+
+    def _sample_makers(self) -> dict:
+        """Per sample tag, ``(t, recv, column, i) -> (kind, sample)``."""
+        rec = self.rec
         imu_name = rec.imu.name if rec.imu is not None else ""
         rng_name = rec.rangefinder.name if rec.rangefinder is not None else ""
         ap_name = rec.autopilot.name if rec.autopilot is not None else ""
         baro_inst = rec.baro.instance + 1 if rec.baro is not None else 1
-        samples = st.samples
-        for tag, i, verdict, gap_s in zip(tags[order].tolist(), idx[order].tolist(), verdicts, gaps):
-            c = by_tag[tag]
-            t = c[0][i]
-            recv = t * 1e-6
-            if tag == _IMU:
-                kind, s = "imu", SpecificForceUp(t, recv, 0, c[2][i], imu_name)
-            elif tag == _BARO:
-                kind, s = "baro", BaroHeight(t, recv, 0, c[2][i], c[3][i], baro_inst)
-            elif tag == _GNSS:
-                sig = c[4][i]
-                vz = c[7][i]
-                kind, s = "gnss", GnssHeight(t, recv, 0, c[2][i], c[3][i], sig if sig == sig else None, c[5][i], c[6][i],
-                                             vz if vz == vz else None)
-            elif tag == _RANGE:
-                kind, s = "range", RangeHeight(t, recv, 0, c[2][i], c[3][i], rng_name, c[4][i], c[5][i])
-            elif tag == _AP:
-                kind, s = "autopilot", AutopilotHeight(t, recv, 0, c[2][i], ap_name, c[3][i])
-            elif tag == _RANGE_REJ:
-                code, rng, lo, hi, cos_t = c[2][i], c[3][i], c[4][i], c[5][i], c[6][i]
-                st.events["Rejected"] += 1
-                yield Rejected(recv, _RANGE_WHY[code], _range_detail(rng_name, code, rng, lo, hi, cos_t, self.cfg),
-                               t, 0, sensor="range", value_m=rng, min_m=lo, max_m=hi)
-                continue
-            else:  # _IMU_REJ
-                st.events["Rejected"] += 1
-                yield Rejected(recv, "no_attitude", f"{imu_name}: no attitude within {self.cfg.attitude_max_age_s} s", t, 0,
-                               sensor="imu")
-                continue
-            if verdict:  # cannot happen after the decoder's sort; kept as the tlog rule
-                st.rejected[_VERDICT[verdict]] += 1
-                continue
-            if gap_s > 0.0:
-                st.gaps.append(GapRecord(kind, t, 0, gap_s))
-                st.events["Gap"] += 1
-                yield Gap(t_us=t, recv_s=recv, boot=0, kind=kind, length_s=gap_s)
-            samples[kind] += 1
-            yield s
+
+        def gnss(t, recv, c, i):
+            sig, vz = c[4][i], c[7][i]
+            return "gnss", GnssHeight(t, recv, 0, c[2][i], c[3][i], sig if sig == sig else None, c[5][i], c[6][i],
+                                      vz if vz == vz else None)
+
+        return {
+            _IMU: lambda t, recv, c, i: ("imu", SpecificForceUp(t, recv, 0, c[2][i], imu_name)),
+            _BARO: lambda t, recv, c, i: ("baro", BaroHeight(t, recv, 0, c[2][i], c[3][i], baro_inst)),
+            _GNSS: gnss,
+            _RANGE: lambda t, recv, c, i: ("range", RangeHeight(t, recv, 0, c[2][i], c[3][i], rng_name, c[4][i],
+                                                                c[5][i])),
+            _AP: lambda t, recv, c, i: ("autopilot", AutopilotHeight(t, recv, 0, c[2][i], ap_name, c[3][i])),
+        }
+
+    def _rejected(self, tag: int, c: list, i: int, t: int, recv: float) -> Rejected:
+        """The refusal of a rangefinder reading (``_RANGE_REJ``) or of an IMU sample without attitude."""
+        rec = self.rec
+        if tag == _RANGE_REJ:
+            rng_name = rec.rangefinder.name if rec.rangefinder is not None else ""
+            code, rng, lo, hi, cos_t = c[2][i], c[3][i], c[4][i], c[5][i], c[6][i]
+            return Rejected(recv, _RANGE_WHY[code], _range_detail(rng_name, code, rng, lo, hi, cos_t, self.cfg),
+                            t, 0, sensor="range", value_m=rng, min_m=lo, max_m=hi)
+        imu_name = rec.imu.name if rec.imu is not None else ""
+        return Rejected(recv, "no_attitude", f"{imu_name}: no attitude within {self.cfg.attitude_max_age_s} s", t, 0,
+                        sensor="imu")
 
 
 @njit(cache=True)

@@ -73,7 +73,7 @@ import os
 import sys
 import threading
 from collections import Counter
-from typing import Callable, Dict, List, Optional, Tuple
+from typing import Callable, Dict, List, NamedTuple, Optional, Tuple
 
 import numpy as np
 
@@ -435,62 +435,113 @@ def _data_section(u, ULog, buf: np.ndarray, start: int, last_back: int, printed:
     short = (types == _MSG_D) & (sizes < 2)
     if short.any():  # a data message too short for its id: pyulog stops there
         stop = int(offs[np.argmax(short)])
-    header = ULog._MessageHeader()
-
-    # every message but data, through pyulog's own classes, in file order
-    others: List[tuple] = []  # (offset, type, parsed message)
-    since: Dict[int, int] = {}  # msg_id -> offset of its subscription
-    rest = (types != _MSG_D) & (offs < stop)
-    for o, n, typ in zip(offs[rest].tolist(), sizes[rest].tolist(), types[rest].tolist()):
-        header.msg_size, header.msg_type = n, typ
-        data = buf[o + 3:o + 3 + n].tobytes()
-        try:
-            if typ == _MSG_A:
-                msg = ULog._MessageAddLogged(data, header, u._message_formats)
-                if msg.msg_id in since:  # subscribed again: pyulog's loop replaces the first
-                    raise ValueError("msg_id subscribed twice")
-                since[msg.msg_id] = o
-            elif typ in (ULog.MSG_TYPE_INFO, ULog.MSG_TYPE_PARAMETER):
-                msg = ULog._MessageInfo(data, header)
-            elif typ == ULog.MSG_TYPE_INFO_MULTIPLE:
-                msg = ULog._MessageInfo(data, header, is_info_multiple=True)
-            elif typ == ULog.MSG_TYPE_PARAMETER_DEFAULT:
-                msg = ULog._MessageParameterDefault(data, header)
-            elif typ == ULog.MSG_TYPE_LOGGING:
-                msg = ULog.MessageLogging(data, header)
-            elif typ == ULog.MSG_TYPE_LOGGING_TAGGED:
-                msg = ULog.MessageLoggingTagged(data, header)
-            elif typ == ULog.MSG_TYPE_DROPOUT:
-                msg = ULog.MessageDropout(data, header, 0)  # its time is set below
-            else:  # sync
-                msg = None
-        except Exception:  # pyulog's loop reports (or stops at) this message
-            stop = o
-            break
-        others.append((o, typ, msg))
+    others, since, stop = _other_messages(u, ULog, buf, offs, sizes, types, stop)
     filt = list(TOPICS)
-    subs = {m.msg_id: m for o, t, m in others if t == _MSG_A and m.message_name in filt}
+    subs = _kept_subscriptions(others, filt)
 
     # data messages before ``stop``: subscribed before them, kept topic, valid size
     is_d = (types == _MSG_D) & (offs < stop)
     d_offs, d_sizes = offs[is_d], sizes[is_d]
     d_ids = _u16(buf, d_offs + 3)
-    for msg_id, sub in subs.items():  # pyulog reads 8 timestamp bytes: past a short row, it stops
-        if sub.timestamp_offset + 8 > sub.dtype.itemsize:
-            later = (d_ids == msg_id) & (d_offs > since[msg_id])
-            if later.any():
-                stop = min(stop, int(d_offs[np.argmax(later)]))
+    stop = _short_timestamp_stop(subs, since, d_ids, d_offs, stop)
     # the walk again, to ``stop``: its recoveries before there only
     _, _, corrupt, last_back = _walk(buf, start, stop, _KNOWN_TYPES, _SYNC, last_back)
     if corrupt:
         u._file_corrupt = True
     if stop < buf.size:
-        others = [x for x in others if x[0] < stop]
-        subs = {m.msg_id: m for o, t, m in others if t == _MSG_A and m.message_name in filt}
+        others = [x for x in others if x.offset < stop]
+        subs = _kept_subscriptions(others, filt)
         since = {i: o for i, o in since.items() if o < stop}
         keep = d_offs < stop
         d_offs, d_sizes, d_ids = d_offs[keep], d_sizes[keep], d_ids[keep]
-    table = np.full(int(d_ids.max()) + 1 if d_ids.size else 1, buf.size, dtype=np.int64)
+    known, missing = _subscribed_rows(d_ids, d_offs, since, buf.size)
+    if missing:
+        u._file_corrupt = True
+    last_ts = _last_timestamps(u._last_timestamp, *_fill_buffers(u, buf, subs, known, d_ids, d_offs, d_sizes))
+    _apply_other_messages(u, ULog, others, filt, last_ts)
+    for msg_id in missing:  # pyulog's warning, once per unknown id, in file order
+        printed.append(f"Warning: no subscription found for message id {msg_id}. Continuing, "
+                       "but file is most likely corrupt")
+    u._missing_message_ids.update(missing)
+    u._last_timestamp = last_ts(buf.size)
+    if stop == buf.size:
+        _final_conversion(u, ULog)
+    return stop, last_back
+
+
+class _Other(NamedTuple):
+    """A data-section message other than data, parsed by pyulog's own class."""
+
+    offset: int
+    type: int
+    msg: object  # None for a sync message
+
+
+def _parse_other(u, ULog, typ: int, data: bytes, header):
+    """One message that is not data through pyulog's class for its type (None: sync)."""
+    if typ == _MSG_A:
+        return ULog._MessageAddLogged(data, header, u._message_formats)
+    if typ in (ULog.MSG_TYPE_INFO, ULog.MSG_TYPE_PARAMETER):
+        return ULog._MessageInfo(data, header)
+    if typ == ULog.MSG_TYPE_INFO_MULTIPLE:
+        return ULog._MessageInfo(data, header, is_info_multiple=True)
+    if typ == ULog.MSG_TYPE_PARAMETER_DEFAULT:
+        return ULog._MessageParameterDefault(data, header)
+    if typ == ULog.MSG_TYPE_LOGGING:
+        return ULog.MessageLogging(data, header)
+    if typ == ULog.MSG_TYPE_LOGGING_TAGGED:
+        return ULog.MessageLoggingTagged(data, header)
+    if typ == ULog.MSG_TYPE_DROPOUT:
+        return ULog.MessageDropout(data, header, 0)  # its time is set later
+    return None
+
+
+def _other_messages(u, ULog, buf: np.ndarray, offs: np.ndarray, sizes: np.ndarray, types: np.ndarray,
+                    stop: int) -> Tuple[List[_Other], Dict[int, int], int]:
+    """Every message but data before ``stop``, in file order, through pyulog's
+    own classes: ``(messages, msg_id -> offset of its subscription, stop)``,
+    ``stop`` moved back to a message pyulog's loop reports (or stops at)."""
+    header = ULog._MessageHeader()
+    others: List[_Other] = []
+    since: Dict[int, int] = {}
+    rest = (types != _MSG_D) & (offs < stop)
+    for o, n, typ in zip(offs[rest].tolist(), sizes[rest].tolist(), types[rest].tolist()):
+        header.msg_size, header.msg_type = n, typ
+        data = buf[o + 3:o + 3 + n].tobytes()
+        try:
+            msg = _parse_other(u, ULog, typ, data, header)
+            if typ == _MSG_A:
+                if msg.msg_id in since:  # subscribed again: pyulog's loop replaces the first
+                    raise ValueError("msg_id subscribed twice")
+                since[msg.msg_id] = o
+        except Exception:  # pyulog's loop reports (or stops at) this message
+            stop = o
+            break
+        others.append(_Other(o, typ, msg))
+    return others, since, stop
+
+
+def _kept_subscriptions(others: List[_Other], filt: List[str]) -> dict:
+    """msg_id -> subscription, of the topics kept."""
+    return {x.msg.msg_id: x.msg for x in others if x.type == _MSG_A and x.msg.message_name in filt}
+
+
+def _short_timestamp_stop(subs: dict, since: Dict[int, int], d_ids: np.ndarray, d_offs: np.ndarray,
+                          stop: int) -> int:
+    """pyulog reads 8 timestamp bytes: past a row too short for them, it stops."""
+    for msg_id, sub in subs.items():
+        if sub.timestamp_offset + 8 > sub.dtype.itemsize:
+            later = (d_ids == msg_id) & (d_offs > since[msg_id])
+            if later.any():
+                stop = min(stop, int(d_offs[np.argmax(later)]))
+    return stop
+
+
+def _subscribed_rows(d_ids: np.ndarray, d_offs: np.ndarray, since: Dict[int, int],
+                     size: int) -> Tuple[np.ndarray, List[int]]:
+    """Which data rows come after their id's subscription, and the ids of the
+    others (each once, in file order)."""
+    table = np.full(int(d_ids.max()) + 1 if d_ids.size else 1, size, dtype=np.int64)
     for i, o in since.items():
         if i < table.size:
             table[i] = o
@@ -499,7 +550,14 @@ def _data_section(u, ULog, buf: np.ndarray, start: int, last_back: int, printed:
     if not known.all():
         ids, first = np.unique(d_ids[~known], return_index=True)
         missing = ids[np.argsort(first, kind="stable")].tolist()
-        u._file_corrupt = True
+    return known, missing
+
+
+def _fill_buffers(u, buf: np.ndarray, subs: dict, known: np.ndarray, d_ids: np.ndarray, d_offs: np.ndarray,
+                  d_sizes: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """Append each kept subscription's rows to its buffer, as pyulog does
+    (rows of the wrong size skipped as corrupt); returns the offsets and
+    timestamps of the rows appended."""
     ts_off, ts_val = [np.zeros(0, dtype=np.int64)], [np.zeros(0, dtype=np.uint64)]
     for msg_id, sub in subs.items():
         rows = known & (d_ids == msg_id)
@@ -518,17 +576,24 @@ def _data_section(u, ULog, buf: np.ndarray, start: int, last_back: int, printed:
         t = sub.timestamp_offset
         ts_off.append(o)
         ts_val.append(np.ascontiguousarray(rows_b[:, t:t + 8]).view("<u8").reshape(-1))
+    return np.concatenate(ts_off), np.concatenate(ts_val)
 
-    # pyulog's _last_timestamp before each message: the largest data timestamp so far
-    ro, rt = np.concatenate(ts_off), np.concatenate(ts_val)
+
+def _last_timestamps(start_ts: int, ro: np.ndarray, rt: np.ndarray) -> Callable[[int], int]:
+    """pyulog's ``_last_timestamp`` before the message at an offset: the
+    largest data timestamp so far (``start_ts`` before any)."""
     order = np.argsort(ro, kind="stable")
     ro, run_max = ro[order], np.maximum.accumulate(rt[order])
-    start_ts = u._last_timestamp
 
     def last_ts(o: int) -> int:
         j = int(np.searchsorted(ro, o))
         return max(start_ts, int(run_max[j - 1])) if j else start_ts
 
+    return last_ts
+
+
+def _apply_other_messages(u, ULog, others: List[_Other], filt: List[str], last_ts: Callable[[int], int]) -> None:
+    """Into ``u``, each message but data as pyulog's loop keeps it."""
     for o, typ, msg in others:
         if typ == _MSG_A:
             if msg.message_name in filt:
@@ -553,22 +618,30 @@ def _data_section(u, ULog, buf: np.ndarray, start: int, last_back: int, printed:
             u._dropouts.append(msg)
         else:
             u._sync_seq_cnt += 1
-    for msg_id in missing:  # pyulog's warning, once per unknown id, in file order
-        printed.append(f"Warning: no subscription found for message id {msg_id}. Continuing, "
-                       "but file is most likely corrupt")
-    u._missing_message_ids.update(missing)
-    u._last_timestamp = last_ts(buf.size)
-    if stop == buf.size:  # the end: pyulog's final conversion (subscriptions popped last first)
-        while u._subscriptions:
-            _, sub = u._subscriptions.popitem()
-            if len(sub.buffer) > 0:
-                u._data_list.append(ULog.Data(sub))
-        u._data_list.sort(key=lambda ds: (ds.name, ds.multi_id))
-    return stop, last_back
+
+
+def _final_conversion(u, ULog) -> None:
+    """pyulog's conversion at the end of the file (subscriptions popped last first)."""
+    while u._subscriptions:
+        _, sub = u._subscriptions.popitem()
+        if len(sub.buffer) > 0:
+            u._data_list.append(ULog.Data(sub))
+    u._data_list.sort(key=lambda ds: (ds.name, ds.multi_id))
 
 
 def _file_damage(p: _Parsed, size: int) -> List[str]:
-    u, fh = p.ulog, p.fh
+    """The damage lines of a ULog: where pyulog's reading ended early, what
+    it printed, appended data past the end, logger dropouts."""
+    u = p.ulog
+    out = _reading_damage(u, p.fh, size)
+    out += _printed_damage(u, p.printed)
+    out += _appended_damage(u, size)
+    out += _dropout_damage(u)
+    return out
+
+
+def _reading_damage(u, fh, size: int) -> List[str]:
+    """A file cut short, pyulog going round in circles or stopping early, no message formats."""
     out: List[str] = []
     end = size if fh.limit is None else min(size, fh.limit)
     if fh.cut is not None and end == size:
@@ -583,8 +656,15 @@ def _file_damage(p: _Parsed, size: int) -> List[str]:
                    "the rest is lost")
     if not getattr(u, "message_formats", None):
         out.append("no message formats: the file ends inside its header or definitions")
-    corrupt, other = [], []
-    for line in p.printed:
+    return out
+
+
+def _printed_lines(printed: List[str]) -> Tuple[List[str], List[str]]:
+    """pyulog's printed lines without their prefixes, each once: ``(about
+    corruption or subscriptions, the others)``."""
+    corrupt: List[str] = []
+    other: List[str] = []
+    for line in printed:
         for pre in ("Warning: ", "Error: "):
             if line.startswith(pre):
                 line = line[len(pre):]
@@ -592,20 +672,34 @@ def _file_damage(p: _Parsed, size: int) -> List[str]:
         which = corrupt if ("corrupt" in line.lower() or "subscription" in line) else other
         if line and line not in which:
             which.append(line)
+    return corrupt, other
+
+
+def _printed_damage(u, printed: List[str]) -> List[str]:
+    """Corrupt data pyulog skipped (up to three of its reasons), and up to three other lines it printed."""
+    out: List[str] = []
+    corrupt, other = _printed_lines(printed)
     if getattr(u, "file_corruption", False) or corrupt:
         said = [c for c in corrupt if not c.lower().startswith("file corruption detected")]
         text = "; ".join(said[:3]) + (f"; {len(said) - 3} more" if len(said) > 3 else "")
         out.append("corrupt data skipped by pyulog" + (f" ({text})" if text else ""))
     out.extend(f"pyulog: {line}"[:300] for line in other[:3])
-    if getattr(u, "has_data_appended", False):
-        offs = [o for o in getattr(u, "_appended_offsets", []) or [] if o > size]
-        if offs:
-            out.append(f"appended-data offset {offs[0]} lies past the end of the file ({size} bytes)")
-    drops = list(getattr(u, "dropouts", []) or [])
-    if drops:
-        ms = [int(d.duration) for d in drops]
-        out.append(f"logger dropouts: {len(ms)}, {sum(ms)} ms of data not logged (longest {max(ms)} ms)")
     return out
+
+
+def _appended_damage(u, size: int) -> List[str]:
+    if not getattr(u, "has_data_appended", False):
+        return []
+    offs = [o for o in getattr(u, "_appended_offsets", []) or [] if o > size]
+    return [f"appended-data offset {offs[0]} lies past the end of the file ({size} bytes)"] if offs else []
+
+
+def _dropout_damage(u) -> List[str]:
+    drops = list(getattr(u, "dropouts", []) or [])
+    if not drops:
+        return []
+    ms = [int(d.duration) for d in drops]
+    return [f"logger dropouts: {len(ms)}, {sum(ms)} ms of data not logged (longest {max(ms)} ms)"]
 
 
 # --------------------------------------------------------------------- columns
