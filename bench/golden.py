@@ -11,8 +11,8 @@ change behaviour.
 ``--json``, ``--csv`` and the printed table, and keeps, per log
 ``NAME.json``, ``NAME.csv``, ``NAME.stdout``, ``NAME.stderr`` and
 ``NAME.rc`` (the exit status). The logs: every ``.tlog`` in
-``/work/shared/tlogs/real`` and ``/work/shared/tlogs/other``, every
-``.tlog``/``.bin``/``.BIN``/``.ulg`` in ``/work/shared/flightlogs``, and the
+``../shared/tlogs/real`` and ``../shared/tlogs/other``, every
+``.tlog``/``.bin``/``.BIN``/``.ulg`` in ``../shared/flightlogs``, and the
 repository's ``sitl_logs/*.tlog``; ``--more`` adds
 ``~/.cache/mavnav-flightlogs``. The logs are read where they are, never
 copied.
@@ -34,14 +34,15 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+SHARED = REPO.parent / "shared"  # beside the repository, read in place
 SUFFIXES = {".tlog", ".bin", ".BIN", ".ulg"}
 
 
 def log_files(more: bool = False) -> list[Path]:
     """The logs of the golden set, in a fixed order."""
-    dirs = [(Path("/work/shared/tlogs/real"), {".tlog"}),
-            (Path("/work/shared/tlogs/other"), {".tlog"}),
-            (Path("/work/shared/flightlogs"), SUFFIXES),
+    dirs = [(SHARED / "tlogs" / "real", {".tlog"}),
+            (SHARED / "tlogs" / "other", {".tlog"}),
+            (SHARED / "flightlogs", SUFFIXES),
             (REPO / "sitl_logs", {".tlog"})]
     if more:
         dirs.append((Path.home() / ".cache" / "mavnav-flightlogs", SUFFIXES))
