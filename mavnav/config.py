@@ -365,6 +365,9 @@ class MonitorConfig(_Section):
     residual_scale_tau_s: float = Field(60.0, gt=0)
     residual_scale_min: float = Field(0.5, gt=0, le=1)
     residual_scale_max: float = Field(5.0, ge=1)
+    # the largest lag-one correlation the aux innovation scale believes (its
+    # long-run factor sqrt((1 + phi) / (1 - phi)) is 6.2 at 0.95)
+    residual_scale_max_phi: float = Field(0.95, ge=0, lt=1)
     # A pass rules out faults larger than its statistic plus this many of its
     # sigmas; a failure's size is its innovation averaged over this time.
     clear_margin_sigma: float = Field(2.0, ge=0)

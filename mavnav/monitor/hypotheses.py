@@ -151,7 +151,8 @@ class HypothesisLogic:
         # measured scale of each sequential test's residuals; the INS check only
         # ever widens (its windows overlap, so only the variance ratio counts)
         sc = (m.residual_scale_tau_s, m.residual_scale_min, m.residual_scale_max)
-        self.scale = {"gnss": ResidualScale(*sc), "rangefinder": ResidualScale(*sc),
+        aux_sc = (*sc, m.residual_scale_max_phi)
+        self.scale = {"gnss": ResidualScale(*aux_sc), "rangefinder": ResidualScale(*aux_sc),
                       "ins": ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0),
                       "baro": ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0)}
         self.jump: Optional[list] = None  # open baro jump: [t0, size_m, sd0, offset_m, n_after, before]
@@ -207,104 +208,129 @@ class HypothesisLogic:
 
     def pre(self, ep: EpochInputs) -> EpochInputs:
         """Gate GNSS / rangefinder samples, judge the baro sample, keep excluded sources out."""
-        bank = self.bank
         t = ep.t_us
-        changes = {}
-        max_var = self.m.max_channel_sigma_m ** 2
-        baro_z = math.inf  # this epoch's baro row against the INS (inf: none)
-        if ep.baro_m is not None:
-            self.rates["baro_ins"].push(t)
-            self.last_baro_us = t
-            self.last_baro_m = ep.baro_m
-            self.baro_white_var = ep.baro_white_var_m2
-            # judged in the channel held best by an aux sensor (its velocity is the
-            # surest); the baro+INS channel alone trades a level error for velocity
-            r, S = bank.predicted_baro(self._anchor(), ep)
-            if S == S and S > 0:
-                nu2 = r * r / S
-                self.last_z["baro_ins"] = r / math.sqrt(S)
-                baro_z = abs(self.last_z["baro_ins"])
-                # the jump gate at the baro row's measured scatter (never below the model's)
-                sc = self.scale["baro"]
-                reject = self.f.innovation_gating and nu2 > self.baro_gate * sc.sd ** 2
-                if not reject and self.jump is None:
-                    sc.push(t, self.last_z["baro_ins"])
-                if not self._warm("baro_ins", t):
-                    self.rejections["baro_ins"].push(t, nu2, reject)
-                    self.baro_judged = (r, math.sqrt(S), reject)
-                if reject:
-                    changes["baro_restart"] = True  # no baro row anywhere; differencing restarts
-            else:
-                self.jump = None  # the differencing restarted
-                self.before_jump.clear()
-        if baro_z == math.inf and self.jump is None and self.last_z["baro_ins"] == self.last_z["baro_ins"]:
-            # no baro sample in this epoch (each sample has its own): the latest
-            # baro row, if no older than two baro intervals, says whether the baro
-            # stayed consistent (a baro step shows in its own row before any aux
-            # channel can follow it)
-            iv = self.rates["baro_ins"].interval_s
-            if iv == iv and t - self.last_baro_us <= 2e6 * iv:
-                baro_z = abs(self.last_z["baro_ins"])
+        changes: dict = {}
+        baro_z = self._judge_baro(ep, t, changes) if ep.baro_m is not None else math.inf
+        if baro_z == math.inf:
+            baro_z = self._latest_baro_z(t)
         for c, name in AUX:
             aux = ep.gnss if c == GNSS else ep.rng
             self.pending_raw[c] = None
-            if aux is None:
-                continue
-            self.rates[name].push(t)
-            if c == RNG:
-                self.range_valid.append(t)
-            last = self.last_seen_us[c]
-            self.last_seen_us[c] = t
-            self.pending_raw[c] = (aux.height_m - aux.age_s * bank.x[c, 1], aux.sigma_m)
-            self.sensor_var_floor[c] = aux.sigma_m * aux.sigma_m
-            if c == GNSS and self.f.doppler_check:
-                self._push_doppler(t - int(aux.age_s * 1e6), aux)
-            if c == GNSS and self.f.ins_doppler_check:
-                self.pending_doppler = (t, aux.vel_up_mps)
-            field_name = "gnss" if c == GNSS else "rng"
-            if name in self.excluded:
-                changes[field_name] = None  # the channel coasts; readmission decides later
-                continue
-            acc = self.last_accept_us[c]
-            # back after coasting without its sensor (not after rejecting it: that is
-            # the tests' business), or with a sigma past the limit: start again
-            absent = last is not None and t - last > self.coast_us
-            if absent or bank.P[c, 0, 0] > max_var:
-                self._reinit_aux(c, name, t, aux.sigma_m)
-            r, S = bank.predicted_aux(c, ep, aux)
-            z = r / math.sqrt(S) if S > 0 else math.inf
-            nu2 = z * z
-            # a sudden change of the innovation while this epoch's baro row is
-            # clean: neither the baro nor the INS (whose errors are integrals)
-            # can make it
-            sd = math.sqrt(S) if S > 0 else math.inf
-            if last is not None and t - last <= self.stale_us[c] and not absent:
-                jump = abs(r - self.last_r_m[name])
-                if jump > math.sqrt(self.gate) * math.hypot(sd, self.last_sd_m[name]):
-                    self.sudden[name] = (t, baro_z < self.m.clear_frac * math.sqrt(self.baro_gate), jump)
-            self.last_z[name] = z
-            self.last_r_m[name] = r
-            # the failure's size: the innovation's recent mean (one sample is noise)
-            w = 1.0 - math.exp(-max(t - (last or t), 0) * 1e-6 / self.m.fail_size_tau_s) if last is not None else 1.0
-            self.r_avg_m[name] = r if absent else self.r_avg_m[name] + w * (r - self.r_avg_m[name])
-            self.last_sd_m[name] = sd
-            # the gate at the innovations' measured scatter, never below the model's
-            reject = self.f.innovation_gating and nu2 > self.gate * max(1.0, self.scale[name].sd) ** 2
-            if absent:
-                self.scale[name].gap()
-            if not self._warm(name, t):
-                if self.f.window_test and not ("baro_ins" in self.excluded and self.ins_excluded):
-                    sc = self.scale[name]
-                    self.cusum[name].push(z / sc.factor)
-                    if not reject and self.cusum[name].stat < self.m.suspect_frac * self._h(name):
-                        sc.push(t, z)  # frozen while the test leans towards a fault
-                self.rejections[name].push(t, nu2, reject)
-            if reject:
-                changes[field_name] = None
-            else:
-                self.last_accept_us[c] = t
+            if aux is not None:
+                self._judge_aux(ep, c, name, aux, t, baro_z, changes)
         self.dv_var = ep.dv_var_m2ps2
         return dataclasses.replace(ep, **changes) if changes else ep
+
+    def _judge_baro(self, ep: EpochInputs, t: int, changes: dict) -> float:
+        """This epoch's baro row against the INS: its |z| (inf: none), the jump
+        gate, the rejection window."""
+        self.rates["baro_ins"].push(t)
+        self.last_baro_us = t
+        self.last_baro_m = ep.baro_m
+        self.baro_white_var = ep.baro_white_var_m2
+        # judged in the channel held best by an aux sensor (its velocity is the
+        # surest); the baro+INS channel alone trades a level error for velocity
+        r, S = self.bank.predicted_baro(self._anchor(), ep)
+        if not (S == S and S > 0):
+            self.jump = None  # the differencing restarted
+            self.before_jump.clear()
+            return math.inf
+        nu2 = r * r / S
+        self.last_z["baro_ins"] = r / math.sqrt(S)
+        # the jump gate at the baro row's measured scatter (never below the model's)
+        sc = self.scale["baro"]
+        reject = self.f.innovation_gating and nu2 > self.baro_gate * sc.sd ** 2
+        if not reject and self.jump is None:
+            sc.push(t, self.last_z["baro_ins"])
+        if not self._warm("baro_ins", t):
+            self.rejections["baro_ins"].push(t, nu2, reject)
+            self.baro_judged = (r, math.sqrt(S), reject)
+        if reject:
+            changes["baro_restart"] = True  # no baro row anywhere; differencing restarts
+        return abs(self.last_z["baro_ins"])
+
+    def _latest_baro_z(self, t: int) -> float:
+        """No baro sample in this epoch (each sample has its own): the latest
+        baro row, if no older than two baro intervals, says whether the baro
+        stayed consistent (a baro step shows in its own row before any aux
+        channel can follow it)."""
+        if self.jump is not None or self.last_z["baro_ins"] != self.last_z["baro_ins"]:
+            return math.inf
+        iv = self.rates["baro_ins"].interval_s
+        if iv == iv and t - self.last_baro_us <= 2e6 * iv:
+            return abs(self.last_z["baro_ins"])
+        return math.inf
+
+    def _judge_aux(self, ep: EpochInputs, c: int, name: str, aux, t: int, baro_z: float, changes: dict) -> None:
+        """One GNSS or rangefinder sample: the Doppler checks, then (unless its
+        source is out) re-initialisation, the innovation, the sudden-jump
+        rule, the gate and the sequential test."""
+        bank = self.bank
+        last = self._record_aux(c, name, aux, t)
+        field_name = "gnss" if c == GNSS else "rng"
+        if name in self.excluded:
+            changes[field_name] = None  # the channel coasts; readmission decides later
+            return
+        # back after coasting without its sensor (not after rejecting it: that is
+        # the tests' business), or with a sigma past the limit: start again
+        absent = last is not None and t - last > self.coast_us
+        if absent or bank.P[c, 0, 0] > self.m.max_channel_sigma_m ** 2:
+            self._reinit_aux(c, name, t, aux.sigma_m)
+        r, S = bank.predicted_aux(c, ep, aux)
+        z = r / math.sqrt(S) if S > 0 else math.inf
+        sd = math.sqrt(S) if S > 0 else math.inf
+        if last is not None and t - last <= self.stale_us[c] and not absent:
+            self._note_sudden(name, t, r, sd, baro_z)
+        self.last_z[name] = z
+        self.last_r_m[name] = r
+        # the failure's size: the innovation's recent mean (one sample is noise)
+        w = 1.0 - math.exp(-max(t - (last or t), 0) * 1e-6 / self.m.fail_size_tau_s) if last is not None else 1.0
+        self.r_avg_m[name] = r if absent else self.r_avg_m[name] + w * (r - self.r_avg_m[name])
+        self.last_sd_m[name] = sd
+        # the gate at the innovations' measured scatter, never below the model's
+        reject = self.f.innovation_gating and z * z > self.gate * max(1.0, self.scale[name].sd) ** 2
+        if absent:
+            self.scale[name].gap()
+        if not self._warm(name, t):
+            self._sequential(name, t, z, reject)
+        if reject:
+            changes[field_name] = None
+        else:
+            self.last_accept_us[c] = t
+
+    def _record_aux(self, c: int, name: str, aux, t: int) -> Optional[int]:
+        """What every sample of a stream feeds, excluded or not: its rate, the
+        raw checks, the Doppler checks. Returns the previous sample's time."""
+        self.rates[name].push(t)
+        if c == RNG:
+            self.range_valid.append(t)
+        last = self.last_seen_us[c]
+        self.last_seen_us[c] = t
+        self.pending_raw[c] = (aux.height_m - aux.age_s * self.bank.x[c, 1], aux.sigma_m)
+        self.sensor_var_floor[c] = aux.sigma_m * aux.sigma_m
+        if c == GNSS and self.f.doppler_check:
+            self._push_doppler(t - int(aux.age_s * 1e6), aux)
+        if c == GNSS and self.f.ins_doppler_check:
+            self.pending_doppler = (t, aux.vel_up_mps)
+        return last
+
+    def _note_sudden(self, name: str, t: int, r: float, sd: float, baro_z: float) -> None:
+        """A sudden change of the innovation while this epoch's baro row is
+        clean: neither the baro nor the INS (whose errors are integrals) can
+        make it."""
+        jump = abs(r - self.last_r_m[name])
+        if jump > math.sqrt(self.gate) * math.hypot(sd, self.last_sd_m[name]):
+            self.sudden[name] = (t, baro_z < self.m.clear_frac * math.sqrt(self.baro_gate), jump)
+
+    def _sequential(self, name: str, t: int, z: float, reject: bool) -> None:
+        """The CUSUM (on the measured scale; frozen while the baro+INS source is
+        out for its INS) and the rejection window."""
+        if self.f.window_test and not ("baro_ins" in self.excluded and self.ins_excluded):
+            sc = self.scale[name]
+            self.cusum[name].push(z / sc.factor)
+            if not reject and self.cusum[name].stat < self.m.suspect_frac * self._h(name):
+                sc.push(t, z)  # frozen while the test leans towards a fault
+        self.rejections[name].push(t, z * z, reject)
 
     def _doppler_thr(self) -> float:
         return self.k_cmp * self.m.doppler_sigma_m * self.scale["doppler"].factor
@@ -507,19 +533,9 @@ class HypothesisLogic:
         cs = self.cusum[name]
         h = self._h(name)
         rej = self.rejections[name].rejected
-        # with the baro in the channel, the INS between aux samples is held by the
-        # baro rows, unless an INS test doubts the INS: a strong accelerometer
-        # fault drifts the channel's innovations too (without this, the
-        # INS/Doppler test's failures pinned INS faults on the GNSS)
-        if self.bank.baro_on[c]:
-            implicates = frozenset((name, "baro", "ins")) if self.ins_doubt else frozenset((name, "baro"))
-        else:
-            implicates = frozenset((name, "ins"))
+        implicates = self._aux_implicates(c, name)
         label = LABEL[name]
-        sudden = self.sudden.get(name)
-        if sudden is not None and t - sudden[0] > self.rejections[name].length_us:
-            self.sudden.pop(name)
-            sudden = None
+        sudden = self._sudden_now(name, t)
         if (self.f.innovation_gating and (rej >= m.alarm_rejections or cs.stat > h)
                 and sudden is not None and sudden[1]):
             return Verdict(f"{name} innovation", "fail", frozenset((name,)), stat=cs.stat, threshold=h,
@@ -533,13 +549,36 @@ class HypothesisLogic:
         if rej >= m.caution_rejections or cs.stat > m.suspect_frac * h:
             return Verdict(f"{name} innovation", "suspect", implicates, stat=cs.stat, threshold=h,
                            text=f"{label}: {rej} rejected, CUSUM {cs.stat:.1f} of {h:.1f}")
-        # a CUSUM restarted on a held failure vouches for nothing until it has run again
+        return Verdict(f"{name} innovation", "pass", implicates, self._aux_clears(c, name, t, cs.stat, h, rej),
+                       cs.stat, h, scale_m=abs(self.r_avg_m[name]) + m.clear_margin_sigma * self.last_sd_m[name])
+
+    def _aux_clears(self, c: int, name: str, t: int, stat: float, h: float, rej: int) -> frozenset:
+        """What an aux innovation pass rules out: nothing unless the test is
+        well below its threshold with nothing rejected; and a CUSUM restarted on
+        a held failure vouches for nothing until it has run again."""
         fresh = t - self.restarted_us[name] < self.hold_restart_us
-        clear = frozenset() if cs.stat >= m.clear_frac * h or rej or fresh else (
-            # without the baro the channel rests on the INS alone between its samples
-            frozenset((name,)) if self.bank.baro_on[c] else frozenset((name, "ins")))
-        return Verdict(f"{name} innovation", "pass", implicates, clear, cs.stat, h,
-                       scale_m=abs(self.r_avg_m[name]) + m.clear_margin_sigma * self.last_sd_m[name])
+        if stat >= self.m.clear_frac * h or rej or fresh:
+            return frozenset()
+        # without the baro the channel rests on the INS alone between its samples
+        return frozenset((name,)) if self.bank.baro_on[c] else frozenset((name, "ins"))
+
+    def _aux_implicates(self, c: int, name: str) -> frozenset:
+        """What an aux channel's innovations can mean. With the baro in the
+        channel, the INS between aux samples is held by the baro rows, unless an
+        INS test doubts the INS: a strong accelerometer fault drifts the
+        channel's innovations too (without this, the INS/Doppler test's
+        failures pinned INS faults on the GNSS)."""
+        if self.bank.baro_on[c]:
+            return frozenset((name, "baro", "ins")) if self.ins_doubt else frozenset((name, "baro"))
+        return frozenset((name, "ins"))
+
+    def _sudden_now(self, name: str, t: int) -> Optional[tuple]:
+        """The sudden jump noted for this stream, while the rejection window still holds it."""
+        sudden = self.sudden.get(name)
+        if sudden is not None and t - sudden[0] > self.rejections[name].length_us:
+            self.sudden.pop(name)
+            return None
+        return sudden
 
     def _ins_verdict(self, t: int) -> Optional[Verdict]:
         if self._warm("baro_ins", t) or t - self.last_baro_us > self.stale_baro_us:
@@ -785,10 +824,39 @@ class HypothesisLogic:
     def post(self, ep: EpochInputs, ep_used: EpochInputs, step) -> Decision:
         bank = self.bank
         t = ep.t_us
+        self._advance(ep, t)
+        avail = self._available(t)
+        thr = self.k_cmp * diff_sigmas(bank, self.sensor_var_floor)
+        pairs = pair_reports(bank, avail, thr)
+        verdicts, aux = self._verdicts(t)
+        live = live_hypotheses(self.excluded)
+        j = judge(verdicts, live) if self.f.isolation_2of3 else self._paper_judge(verdicts, live)
+        j = self.judgement = self._restart_held(t, j, aux)
+        # isolation must hold persist_s before it excludes
+        if j.situation == "isolated":
+            if self.isolated_src != j.sources:
+                self.isolated_src, self.isolated_since = j.sources, t
+        else:
+            self.isolated_src, self.isolated_since = frozenset(), None
+        events = [ev for ev in (self._source_state(name, t, j) for name in SENSOR_SOURCES) if ev is not None]
+        h, sigma, used = self._fuse(j, avail)
+        if self.f.validated_feedback:
+            self._feedback(t, avail)
+        statuses = {}
+        for name, trk in self.trackers.items():
+            stat, hi = self._display_stat(name, verdicts)
+            statuses[name] = trk.status(window_stat=stat, window_low=math.nan, window_high=hi,
+                                        rejected=self.rejections[name].rejected)
+        return Decision(available=avail, used=tuple(used), pairs=pairs, sources=statuses,
+                        height_fused_m=h, sigma_fused_m=sigma, events=events)
+
+    def _advance(self, ep: EpochInputs, t: int) -> None:
+        """The tests' own state after the filter step: windows, raw checks, the
+        INS chains, the ramp-onset series, the open baro jump."""
         for w in self.rejections.values():
             w.expire(t)
         self.raw_check.push(t, self.pending_raw[GNSS], self.pending_raw[RNG])
-        self.ins.push(t, ep.dt_s, ep.dp_m, ep.dv_mps, ep.baro_m, bank.x[BARO], bank.P[BARO])
+        self.ins.push(t, ep.dt_s, ep.dp_m, ep.dv_mps, ep.baro_m, self.bank.x[BARO], self.bank.P[BARO])
         if self.f.ins_doppler_check:
             self._push_ins_doppler(ep)
         if self.f.kink_isolation:
@@ -796,10 +864,10 @@ class HypothesisLogic:
         if self.baro_judged is not None:
             self._track_jump(t, ep.baro_m, *self.baro_judged)
             self.baro_judged = None
-        avail = self._available(t)
-        thr = self.k_cmp * diff_sigmas(bank, self.sensor_var_floor)
-        pairs = pair_reports(bank, avail, thr)
 
+    def _verdicts(self, t: int) -> tuple[list, tuple]:
+        """Every test's verdict this epoch (and the aux innovation verdicts, which
+        the hold rule needs)."""
         envelope = self._envelope_verdict(t)
         self.envelope_failing = envelope is not None  # also holds back the rangefinder's readmission
         if "rangefinder" in self.excluded:
@@ -814,21 +882,11 @@ class HypothesisLogic:
                     if v is not None] + self._level_verdicts(t)
         if self.f.kink_isolation:
             verdicts += self._kink_verdicts(t, aux)
-        live = live_hypotheses(self.excluded)
-        j = judge(verdicts, live) if self.f.isolation_2of3 else self._paper_judge(verdicts, live)
-        j = self.judgement = self._restart_held(t, j, aux)
-        events = []
-        # isolation must hold persist_s before it excludes
-        if j.situation == "isolated":
-            if self.isolated_src != j.sources:
-                self.isolated_src, self.isolated_since = j.sources, t
-        else:
-            self.isolated_src, self.isolated_since = frozenset(), None
-        for name in SENSOR_SOURCES:
-            ev = self._source_state(name, t, j)
-            if ev is not None:
-                events.append(ev)
-        # --- fusion of the channels the evidence clears
+        return verdicts, aux
+
+    def _fuse(self, j: Judgement, avail) -> tuple[float, float, tuple]:
+        """The fused height of the channels the evidence clears (NaN: none)."""
+        bank = self.bank
         cleared = {n: self.trackers[n].state == "nominal" or
                    (self.trackers[n].state == "caution" and n not in self._held(j)) for n in SENSOR_SOURCES}
         baro_ok = cleared["baro_ins"] and avail[BARO]
@@ -839,15 +897,7 @@ class HypothesisLogic:
         h, sigma = math.nan, math.nan
         if idx:
             h, sigma, _ = fuse_heights([bank.x[c, 0] for c in idx], bank.height_cov(idx), self.f.inverse_variance)
-        if self.f.validated_feedback:
-            self._feedback(t, avail)
-        statuses = {}
-        for name, trk in self.trackers.items():
-            stat, hi = self._display_stat(name, verdicts)
-            statuses[name] = trk.status(window_stat=stat, window_low=math.nan, window_high=hi,
-                                        rejected=self.rejections[name].rejected)
-        return Decision(available=avail, used=tuple(used), pairs=pairs, sources=statuses,
-                        height_fused_m=h, sigma_fused_m=sigma, events=events)
+        return h, sigma, used
 
     def _restart_held(self, t: int, j: Judgement, aux) -> Judgement:
         """An unresolved failure held ``hold_restart_s``: the sequential tests in

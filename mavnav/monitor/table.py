@@ -65,18 +65,22 @@ def _why(vs) -> str:
     return "; ".join(v.text for v in vs if v.text)
 
 
+def _cleared(passes: list[Verdict], failed: list[Verdict]) -> frozenset:
+    """The hypotheses the passes rule out: each only against the largest
+    discrepancy the failures show as that hypothesis would make it."""
+    if not failed:
+        return frozenset().union(*(v.exonerates for v in passes))
+    size_m = {h: max(f.size_for(h) for f in failed) for v in passes for h in v.exonerates}
+    return frozenset(h for v in passes for h in v.exonerates if v.scale_m <= size_m[h])
+
+
 def judge(verdicts: list[Verdict], live: frozenset = frozenset(HYPOTHESES)) -> Judgement:
     """The situation the verdicts describe. ``live``: hypotheses still in play
     (an excluded source cannot be the cause of a new failure)."""
     failed = [v for v in verdicts if v.level == "fail"]
     # a pass rules a hypothesis out only if it would have seen a fault as large
     # as the largest discrepancy the failures show, as that hypothesis would make it
-    passes = [v for v in verdicts if v.level == "pass"]
-    if failed:
-        size_m = {h: max(f.size_for(h) for f in failed) for v in passes for h in v.exonerates}
-        cleared = frozenset(h for v in passes for h in v.exonerates if v.scale_m <= size_m[h])
-    else:
-        cleared = frozenset().union(*(v.exonerates for v in passes))
+    cleared = _cleared([v for v in verdicts if v.level == "pass"], failed)
     if failed:
         cand = frozenset(live)
         for v in failed:
