@@ -559,8 +559,11 @@ class HypothesisLogic:
         fresh = t - self.restarted_us[name] < self.hold_restart_us
         if stat >= self.m.clear_frac * h or rej or fresh:
             return frozenset()
-        # without the baro the channel rests on the INS alone between its samples
-        return frozenset((name,)) if self.bank.baro_on[c] else frozenset((name, "ins"))
+        # never the INS: a channel aided at 10-20 Hz follows an accelerometer fault
+        # between its samples, so its quiet innovations vouch for its sensor only
+        # (with the baro out, a rangefinder pass had cleared a faulty INS and left
+        # the GNSS to be blamed for it)
+        return frozenset((name,))
 
     def _aux_implicates(self, c: int, name: str) -> frozenset:
         """What an aux channel's innovations can mean. With the baro in the
