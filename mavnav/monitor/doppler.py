@@ -28,6 +28,21 @@ from collections import deque
 from typing import Optional
 
 
+def _restart_on_gap(h: deque, t_us: int, max_gap_us: int) -> None:
+    """A sample not after the last one, or after a gap, starts the history again."""
+    if h and (t_us <= h[-1][0] or t_us - h[-1][0] > max_gap_us):
+        h.clear()
+
+
+def _window_first(h: deque, t_us: int, window_us: int):
+    """Trim the history to the window ending at ``t_us``; its first entry, or
+    None while it spans less than 80 % of the window."""
+    start = t_us - window_us
+    while len(h) > 2 and h[1][0] <= start:
+        h.popleft()
+    return h[0] if t_us - h[0][0] >= 0.8 * window_us else None
+
+
 class DopplerCheck:
     """``e`` over ``window_s`` at each GNSS sample that carries a Doppler
     velocity. Samples further apart than ``max_gap_s``, or without a
@@ -53,19 +68,16 @@ class DopplerCheck:
             self.clear()
             return None
         h = self.hist
-        if h and (t_us <= h[-1][0] or t_us - h[-1][0] > self.max_gap_us):
-            h.clear()
+        _restart_on_gap(h, t_us, self.max_gap_us)
         integral = 0.0
         if h:
             t0, _, v0, i0 = h[-1]
             integral = i0 + 0.5 * (v0 + vel_up_mps) * (t_us - t0) * 1e-6
         h.append((t_us, height_m, vel_up_mps, integral))
-        start = t_us - self.window_us
-        while len(h) > 2 and h[1][0] <= start:
-            h.popleft()
-        t_j, h_j, _, i_j = h[0]
-        if t_us - t_j < 0.8 * self.window_us:
+        first = _window_first(h, t_us, self.window_us)
+        if first is None:
             return None
+        _, h_j, _, i_j = first
         e = (height_m - h_j) - (integral - i_j)
         self.last_e_m = e
         self.last_us = t_us
@@ -112,15 +124,12 @@ class InsDopplerCheck:
             self.clear()
             return None
         h = self.hist
-        if h and (t_us <= h[-1][0] or t_us - h[-1][0] > self.max_gap_us):
-            h.clear()
+        _restart_on_gap(h, t_us, self.max_gap_us)
         h.append((t_us, vel_up_mps, self._vel, self._var))
-        start = t_us - self.window_us
-        while len(h) > 2 and h[1][0] <= start:
-            h.popleft()
-        t_j, v_j, V_j, var_j = h[0]
-        if t_us - t_j < 0.8 * self.window_us:
+        first = _window_first(h, t_us, self.window_us)
+        if first is None:
             return None
+        _, v_j, V_j, var_j = first
         e = (vel_up_mps - v_j) - (self._vel - V_j)
         self.last_e_mps = e
         self.last_var_mps2 = self._var - var_j

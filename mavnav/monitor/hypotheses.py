@@ -370,15 +370,24 @@ class HypothesisLogic:
         e = d.last_e_m
         txt = (f"GNSS altitude moved {e:+.2f} m against its own Doppler velocity over "
                f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m)")
-        gnss = frozenset(("gnss",))
-        if abs(e) > thr:
-            # two samples in a row, and persist_s: one outlier is the gate's business
-            if self.doppler_ex.persistent(t, self.persist_us):
-                return Verdict("GNSS/Doppler", "fail", gnss, stat=abs(e), threshold=thr, text=txt, scale_m=abs(e))
-            return Verdict("GNSS/Doppler", "suspect", gnss, stat=abs(e), threshold=thr, text=txt)
-        if abs(e) > self.m.suspect_frac * thr:
-            return Verdict("GNSS/Doppler", "suspect", gnss, stat=abs(e), threshold=thr, text=txt)
-        return Verdict("GNSS/Doppler", "pass", gnss, frozenset(), abs(e), thr)
+        return self._graded("GNSS/Doppler", abs(e), thr, self.doppler_ex, t, frozenset(("gnss",)), txt)
+
+    def _graded(self, test: str, stat: float, thr: float, ex, t: int, implicates: frozenset, txt: str,
+                clears: frozenset = frozenset(), fail_scale_m: Optional[float] = None, sizes: Optional[dict] = None,
+                pass_scale_m: float = 0.0) -> Verdict:
+        """A windowed test's verdict from its statistic: fail past the threshold
+        on two samples in a row held persist_s (one outlier is the gate's
+        business), suspect past suspect_frac of it, else pass, ruling out
+        ``clears`` below clear_frac of it."""
+        if stat > thr:
+            if ex.persistent(t, self.persist_us):
+                return Verdict(test, "fail", implicates, stat=stat, threshold=thr, text=txt,
+                               scale_m=stat if fail_scale_m is None else fail_scale_m, sizes=sizes)
+            return Verdict(test, "suspect", implicates, stat=stat, threshold=thr, text=txt)
+        if stat > self.m.suspect_frac * thr:
+            return Verdict(test, "suspect", implicates, stat=stat, threshold=thr, text=txt)
+        clear = clears if stat < self.m.clear_frac * thr else frozenset()
+        return Verdict(test, "pass", implicates, clear, stat, thr, scale_m=pass_scale_m)
 
     def _baro_doppler_verdict(self, t: int) -> Optional[Verdict]:
         """The baro's change against the GNSS Doppler's integral over the same
@@ -393,15 +402,7 @@ class HypothesisLogic:
         e = d.last_e_m
         txt = (f"baro moved {e:+.2f} m against the GNSS Doppler velocity over "
                f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m)")
-        implicates = frozenset(("baro", "gnss"))
-        if abs(e) > thr:
-            if self.baro_doppler_ex.persistent(t, self.persist_us):
-                return Verdict("baro/Doppler", "fail", implicates, stat=abs(e), threshold=thr, text=txt,
-                               scale_m=abs(e))
-            return Verdict("baro/Doppler", "suspect", implicates, stat=abs(e), threshold=thr, text=txt)
-        if abs(e) > self.m.suspect_frac * thr:
-            return Verdict("baro/Doppler", "suspect", implicates, stat=abs(e), threshold=thr, text=txt)
-        return Verdict("baro/Doppler", "pass", implicates, frozenset(), abs(e), thr)
+        return self._graded("baro/Doppler", abs(e), thr, self.baro_doppler_ex, t, frozenset(("baro", "gnss")), txt)
 
     def _push_ins_doppler(self, ep: EpochInputs) -> None:
         d = self.ins_doppler
@@ -447,16 +448,9 @@ class HypothesisLogic:
         to_pos_m = 0.5 * W  # a GNSS velocity error e over the window: e W / 2 of position
         txt = (f"INS velocity changed {-e:+.2f} m/s against the GNSS Doppler over "
                f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m/s)")
-        implicates = frozenset(("ins", "gnss"))
-        if abs(e) > thr:
-            if self.insdop_ex.persistent(t, self.persist_us):
-                return Verdict("INS/Doppler", "fail", implicates, stat=abs(e), threshold=thr, text=txt,
-                               scale_m=abs(e) * to_pos_m, sizes={"ins": abs(e) * to_ins_m})
-            return Verdict("INS/Doppler", "suspect", implicates, stat=abs(e), threshold=thr, text=txt)
-        if abs(e) > self.m.suspect_frac * thr:
-            return Verdict("INS/Doppler", "suspect", implicates, stat=abs(e), threshold=thr, text=txt)
-        clear = frozenset(("ins",)) if abs(e) < self.m.clear_frac * thr else frozenset()
-        return Verdict("INS/Doppler", "pass", implicates, clear, abs(e), thr, scale_m=thr * to_ins_m)
+        return self._graded("INS/Doppler", abs(e), thr, self.insdop_ex, t, frozenset(("ins", "gnss")), txt,
+                            clears=frozenset(("ins",)), fail_scale_m=abs(e) * to_pos_m,
+                            sizes={"ins": abs(e) * to_ins_m}, pass_scale_m=thr * to_ins_m)
 
     def _anchor(self) -> int:
         best, best_var = BARO, math.inf
