@@ -178,11 +178,14 @@ def _fault_text(spec: str, onset_s: float, duration_s: float) -> str:
     return f"{spec}{',' if ':' in spec else ':'}onset={onset_s:.3f},duration={duration_s:.3f}"
 
 
-_OVERRIDES: dict = {}  # monitor settings from --set, applied to every contender
+_OVERRIDES: dict = {}  # settings from --set, applied to every contender
+_SECTIONS = ("sensors", "filter", "ingest")  # --set keys under these are not monitor settings
 
 
 def _cfg(mode: str):
-    return config_from_dict({"monitor": {**_OVERRIDES, "mode": mode}})
+    top = {k: v for k, v in _OVERRIDES.items() if k in _SECTIONS}
+    monitor = {k: v for k, v in _OVERRIDES.items() if k not in _SECTIONS}
+    return config_from_dict({**top, "monitor": {**monitor, "mode": mode}})
 
 
 def _span(samples) -> tuple:
@@ -490,7 +493,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     ap.add_argument("--no-faults", action="store_true", help="part 1 only")
     ap.add_argument("--limit", type=int, default=0, help="at most this many flights (0: all)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=YAML",
-                    help="a monitor setting for every contender, e.g. features.kink_isolation=false (repeatable)")
+                    help="a setting for every contender: a monitor key, e.g. features.kink_isolation=false, or "
+                         "one under sensors./filter./ingest., e.g. sensors.gnss.gm_sigma_m=4 (repeatable)")
     ap.add_argument("--json", default=None, help="write every result here")
     ap.add_argument("--out", default=None, help="write the Markdown report here too")
     args = ap.parse_args(argv)

@@ -64,6 +64,12 @@ class GnssConfig(_Section):
     # state absorbs a 0.5 m/s ramp and the SITL ramp alarm comes 24 s late.
     gm_sigma_m: float = Field(0.0, ge=0)  # RMS of the Gauss-Markov error
     gm_tau_s: float = Field(300.0, gt=0)  # its correlation time
+    # The drift test exists where the receiver reports its Doppler vertical
+    # velocity (monitor/doppler.py: a 0.5 m/s position ramp fails it within
+    # 3-4 s), so there the wander is modelled from the first such sample: 4 m /
+    # 300 s gives the median flight's baro-GNSS structure function
+    # (docs/error_models.md). 0 keeps it off; adaptive mode only.
+    gm_sigma_with_doppler_m: float = Field(4.0, ge=0)
     use_v_acc: bool = True  # take sigma from the receiver's v_acc when it reports one
     v_acc_floor_m: float = Field(0.3, ge=0)  # never trust a receiver more than this
 

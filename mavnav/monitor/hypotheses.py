@@ -102,6 +102,7 @@ class HypothesisLogic:
         self.coast_us = int(m.coast_reinit_s * 1e6)
         self.hold_restart_us = int(m.hold_restart_s * 1e6)
         self.warmup_us = int(m.warmup_s * 1e6)
+        self.gm_with_doppler_m = cfg.sensors.gnss.gm_sigma_with_doppler_m
         self.kink_margin = chi2_gate(m.kink_isolation_prob)
         self.t0_us = 0
         self._h_cache: dict[int, float] = {}
@@ -309,6 +310,10 @@ class HypothesisLogic:
         self.pending_raw[c] = (aux.height_m - aux.age_s * self.bank.x[c, 1], aux.sigma_m)
         self.sensor_var_floor[c] = aux.sigma_m * aux.sigma_m
         if c == GNSS and self.f.doppler_check:
+            if aux.vel_up_mps == aux.vel_up_mps:
+                # a receiver with a Doppler velocity: its position's slow wander is
+                # modelled, and a ramp is the Doppler test's to catch
+                self.bank.open_gnss_error(self.gm_with_doppler_m)
             self._push_doppler(t - int(aux.age_s * 1e6), aux)
         if c == GNSS and self.f.ins_doppler_check:
             self.pending_doppler = (t, aux.vel_up_mps)
@@ -657,7 +662,10 @@ class HypothesisLogic:
                 # baro-bias estimate dH between the two, so H + dH follows the baro
                 held = (self.rejections[name].rejected == 0
                         and self.cusum[name].stat < self.m.clear_frac * self._h(name))
-                clear = frozenset(("baro",)) if abs(r) < self.m.clear_frac * thr and held else frozenset()
+                # and never where the channel models the GNSS's slow error: its b_g
+                # takes up a slow baro error, and H + dH follows the baro
+                tracks = held and not (c == GNSS and bank.model.gnss_gm_sigma_m > 0.0)
+                clear = frozenset(("baro",)) if abs(r) < self.m.clear_frac * thr and tracks else frozenset()
                 # scale: the threshold, not less the statistic: the channel's own height
                 # follows a slow baro error in part, so the margin overstates the power
                 # a baro fault of size X would read about X here: faults beyond the
