@@ -87,6 +87,8 @@ class EpochStart:
 
 Epoch = Union[EpochStart, EpochInputs]
 
+_RAW_MAX = 256  # IMU samples that wait for an epoch before they are taken anyway (bounded memory)
+
 
 class Cadence:
     """The typical interval of one stream: the median of its last intervals."""
@@ -132,6 +134,7 @@ class EpochBuilder:
 
     def reset(self) -> None:
         self._imu: deque[tuple[int, float]] = deque()  # (t_us, f_up); imu[0] holds at the last epoch
+        self._raw: list[tuple[int, float]] = []  # (t_us, f_up) not yet taken into _imu (see _take_imu)
         self._last_imu_t: Optional[int] = None
         self._epoch_t: Optional[int] = None  # None until started
         self._pending_baro: deque[BaroHeight] = deque()
@@ -210,43 +213,93 @@ class EpochBuilder:
         return q2
 
     def _on_imu(self, t_us: int, f_up: float) -> list[Epoch]:
-        # One call per IMU sample (200-400 Hz onboard): the attributes it
-        # needs are read once, the noise terms come from a table by interval.
+        # One call per IMU sample (200-400 Hz onboard), so it does the least:
+        # the sample waits in ``_raw`` and its scatter, cadence and hold are
+        # computed in one pass (:meth:`_take_imu`) when an epoch needs them.
         last_t = self._last_imu_t
         if last_t is not None and t_us <= last_t:
             self.counters["imu_not_increasing"] += 1
             return []
-        imu = self._imu
-        cadence = self._imu_cadence
-        if imu:
-            prev_t, prev_f = imu[-1]
-            # scatter beyond the modelled INS white noise, whose per-sample
-            # variance q_a(T)^2 the filters' process noise already carries
-            # (the running mean may go negative; it is used clamped at 0)
-            tau = (t_us - prev_t) * 1e-6
-            iv_us = cadence.interval_us
-            iv = (0.0 if iv_us is None else iv_us * 1e-6) or tau
-            d2 = 0.5 * (f_up - prev_f) ** 2 - 0.5 * (self._q2(tau) + self._q2(iv))
-            self._scatter_n += 1
-            if self._scatter_var != self._scatter_var:
-                self._scatter_var = d2
-            else:  # a running mean until the window is full, then exponential
-                a = min(1.0, max((t_us - prev_t) * 1e-6 / self._f.imu_scatter_window_s, 1.0 / self._scatter_n))
-                self._scatter_var += a * (d2 - self._scatter_var)
-        cadence.push(t_us)
-        imu.append((t_us, f_up))
         self._last_imu_t = t_us
-        out: list[Epoch] = []
-        if self._epoch_t is None:  # not started
-            while len(imu) > 1:
-                imu.popleft()  # keep only the latest until the first baro
-            return out
+        raw = self._raw
+        raw.append((t_us, f_up))
+        epoch_t = self._epoch_t
+        if epoch_t is None:  # not started: only the latest sample is kept
+            if len(raw) >= _RAW_MAX:
+                self._take_imu()
+            return []
         pending = self._pending_baro
+        if pending:
+            if pending[0].t_us > t_us:
+                return []
+        elif t_us - epoch_t <= self._max_gap_us():
+            if len(raw) >= _RAW_MAX:
+                self._take_imu()
+            return []
+        out: list[Epoch] = []
         while pending and pending[0].t_us <= t_us:
             out.append(self._epoch_at(pending.popleft()))
         if not pending and t_us - self._epoch_t > self._max_gap_us():
             out.append(self._forced_epoch(t_us))
         return out
+
+    def _take_imu(self) -> None:
+        """Take the IMU samples waiting in ``_raw``, in order: each one's
+        scatter against the previous sample (beyond the modelled INS white
+        noise, whose per-sample variance q_a(T)^2 the filters' process noise
+        already carries; the running mean may go negative, it is used clamped
+        at 0), the IMU cadence, and the hold queue (only the latest sample
+        before the first epoch)."""
+        raw = self._raw
+        if not raw:
+            return
+        imu = self._imu
+        cadence = self._imu_cadence
+        q2 = self._q2_by_tau
+        window_s = self._f.imu_scatter_window_s
+        var = self._scatter_var
+        n = self._scatter_n
+        prev_t, prev_f = imu[-1] if imu else (None, 0.0)
+        # the IMU cadence (Cadence.push), inline
+        c_last = cadence._last_t
+        dts = cadence._dts
+        c_max = dts.maxlen
+        interval_us = cadence.interval_us
+        for t_us, f_up in raw:
+            if prev_t is not None:
+                tau = (t_us - prev_t) * 1e-6
+                iv = (0.0 if interval_us is None else interval_us * 1e-6) or tau
+                qt = q2.get(tau)
+                if qt is None:
+                    qt = self._q2(tau)
+                qi = q2.get(iv)
+                if qi is None:
+                    qi = self._q2(iv)
+                d2 = 0.5 * (f_up - prev_f) ** 2 - 0.5 * (qt + qi)
+                n += 1
+                if var != var:
+                    var = d2
+                else:  # a running mean until the window is full, then exponential
+                    a = min(1.0, max((t_us - prev_t) * 1e-6 / window_s, 1.0 / n))
+                    var += a * (d2 - var)
+            if c_last is not None and t_us > c_last:
+                dt = t_us - c_last
+                if len(dts) == c_max and dts[0] == dt:
+                    dts.append(dt)  # the interval that leaves is the one that comes: same median
+                else:
+                    dts.append(dt)
+                    interval_us = sorted(dts)[len(dts) // 2]
+            c_last = t_us
+            prev_t, prev_f = t_us, f_up
+        cadence._last_t = c_last
+        cadence.interval_us = interval_us
+        self._scatter_var = var
+        self._scatter_n = n
+        imu.extend(raw)
+        raw.clear()
+        if self._epoch_t is None:  # not started
+            while len(imu) > 1:
+                imu.popleft()  # keep only the latest until the first baro
 
     def _is_repeat(self, b: BaroHeight) -> bool:
         last = self._last_baro
@@ -258,6 +311,7 @@ class EpochBuilder:
             if self._last_imu_t is None:
                 self.counters["baro_before_imu"] += 1
                 return []
+            self._take_imu()  # before the start: only the latest sample holds
             self._epoch_t = b.t_us
             self._last_baro = b
             self._cadence["baro"].push(b.t_us)
@@ -352,6 +406,7 @@ class EpochBuilder:
         """Zero-order-hold integral of ``f_up - g`` from the last epoch to
         ``t_end``: ``(dp, dv, dv_var)``. A sample holds for at most the hold
         limit; beyond it the acceleration is unknown (zero mean)."""
+        self._take_imu()
         g = self._g
         t = self._epoch_t
         imu = self._imu
@@ -364,26 +419,47 @@ class EpochBuilder:
         while len(imu) > 1 and imu[1][0] <= t:
             imu.popleft()
         dp = dv = var = 0.0
+        hold_s = hold_us * 1e-6
+        unknown_us = 0
+        unknown = False
+        n_imu = len(imu)
         while t < t_end:
             t_h, f = imu[0]
-            nxt = imu[1][0] if len(imu) > 1 else None
-            seg_end = t_end if nxt is None or nxt > t_end else nxt
-            held_end = min(seg_end, max(t, t_h + hold_us))
-            for a, z, known in ((t, held_end, True), (held_end, seg_end, False)):
-                tau = (z - a) * 1e-6
-                if tau <= 0.0:
-                    continue
-                acc = f - g if known else 0.0
+            if n_imu > 1:
+                nxt = imu[1][0]
+                seg_end = t_end if nxt > t_end else nxt
+            else:
+                nxt = None
+                seg_end = t_end
+            # min(seg_end, max(t, t_h + hold_us)): the held part, then the unknown rest
+            held_end = t_h + hold_us
+            if t > held_end:
+                held_end = t
+            if seg_end < held_end:
+                held_end = seg_end
+            tau = (held_end - t) * 1e-6
+            if tau > 0.0:
+                acc = f - g
                 dp += dv * tau + 0.5 * acc * tau * tau
                 dv += acc * tau
-                if known:
-                    var += scatter * tau * min(max(iv, tau), hold_us * 1e-6)
-                else:
-                    var += kin_var * tau * kin_tau
-                    self.counters["imu_unknown_us"] += z - a
+                m = tau if tau > iv else iv  # min(max(iv, tau), hold_s)
+                if hold_s < m:
+                    m = hold_s
+                var += scatter * tau * m
+            tau = (seg_end - held_end) * 1e-6
+            if tau > 0.0:
+                acc = 0.0
+                dp += dv * tau + 0.5 * acc * tau * tau
+                dv += acc * tau
+                var += kin_var * tau * kin_tau
+                unknown_us += seg_end - held_end
+                unknown = True
             t = seg_end
             if nxt is not None and nxt <= t_end:
                 imu.popleft()
+                n_imu -= 1
+        if unknown:
+            self.counters["imu_unknown_us"] += unknown_us
         return dp, dv, var
 
     def _aux_for(self, which: str, t_us: int) -> Optional[AuxMeasurement]:
