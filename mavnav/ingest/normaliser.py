@@ -602,7 +602,18 @@ class Normaliser:
         self._resolve_attitude()
 
     def _resolve_attitude(self, flush: bool = False) -> None:
-        for item, q, nearest in self.att.resolve(self.clock.last_t_us, flush):
+        att = self.att
+        pend = att.pending
+        if not pend:
+            return  # nothing waits (att.resolve would release nothing)
+        now_us = self.clock.last_t_us
+        if not flush and now_us is not None:
+            ts = att._t  # att.resolve's own fast path, without the call: the head still waits
+            if ts:
+                t = pend[0][0]
+                if t > ts[-1] and now_us < t + att.wait_us:
+                    return
+        for item, q, nearest in att.resolve(now_us, flush):
             t_us, recv_s, boot, fb, name = item
             if q is None:
                 self._reject(recv_s, "no_attitude", f"{name}: no attitude within {self.cfg.attitude_max_age_s} s", t_us, boot)
