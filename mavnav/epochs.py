@@ -50,8 +50,11 @@ from collections import Counter, deque
 from dataclasses import dataclass
 from typing import Optional, Union
 
+import numpy as np
+
 from .channel import AuxMeasurement, EpochInputs, Model, accel_noise_q
 from .config import Config
+from .jit import njit
 from .samples import BaroHeight, GnssHeight, RangeHeight, Reboot, SpecificForceUp
 
 
@@ -113,11 +116,169 @@ class Cadence:
         self._last_t = t_us
 
 
-class EpochBuilder:
-    """Samples in, epochs out. One instance per vehicle and boot."""
+# The compiled IMU pass's integer state (``_ki``): the scatter's sample count,
+# then the IMU cadence (Cadence with n = 9): its last time, its interval, and
+# the ring of its last intervals (count, index of the oldest, 9 slots).
+_KI_N, _KI_HAS_LAST, _KI_LAST, _KI_HAS_IV, _KI_IV, _KI_CNT, _KI_HEAD, _KI_RING = range(8)
+_CADENCE_N = 9
 
-    def __init__(self, cfg: Config):
+
+@njit(cache=True)
+def _q2_kernel(tau, printed, sigma_a, alpha_a):  # pragma: no cover - compiled
+    """``accel_noise_q(tau) ** 2`` (the same operations)."""
+    if printed:
+        q = sigma_a * math.sqrt(2.0 * tau / alpha_a)
+    else:
+        q = sigma_a * math.sqrt(2.0 / (alpha_a * tau))
+    return q ** 2
+
+
+@njit(cache=True)
+def imu_kernel(raw_t, raw_f, ht, hf, hn, ks, ki, started, integrate, t0, t_end, g, hold_max_s, hold_intervals,
+               kin_var, kin_tau, window_s, printed, sigma_a, alpha_a):  # pragma: no cover - compiled
+    """:meth:`EpochBuilder._take_imu_reference` then, with ``integrate``,
+    :meth:`EpochBuilder._integrate_reference` from ``t0`` to ``t_end``, over
+    arrays: the held samples ``ht, hf[:hn]`` (the reference's deque; room
+    for the new ones behind them), the new samples ``raw_t, raw_f``, the
+    scatter variance ``ks[0]`` and the integer state ``ki`` (see ``_KI_*``).
+    The same operations in the same order as the reference: the same floats.
+    Returns ``(hn, unknown_us, unknown, dp, dv, dv_var)``; ``hn = -1`` when
+    there is no sample to integrate from (the reference's IndexError)."""
+    var = ks[0]
+    n = ki[_KI_N]
+    has_iv = ki[_KI_HAS_IV] != 0
+    iv_us = ki[_KI_IV]
+    has_prev = hn > 0
+    prev_t = ht[hn - 1] if has_prev else 0
+    prev_f = hf[hn - 1] if has_prev else 0.0
+    tmp = np.empty(_CADENCE_N, np.int64)
+    for k in range(raw_t.shape[0]):
+        t_us = raw_t[k]
+        f_up = raw_f[k]
+        if has_prev:
+            tau = (t_us - prev_t) * 1e-6
+            iv = iv_us * 1e-6 if has_iv else 0.0
+            if iv == 0.0:
+                iv = tau
+            qt = _q2_kernel(tau, printed, sigma_a, alpha_a)
+            qi = _q2_kernel(iv, printed, sigma_a, alpha_a)
+            d2 = 0.5 * (f_up - prev_f) ** 2 - 0.5 * (qt + qi)
+            n += 1
+            if var != var:
+                var = d2
+            else:
+                a = (t_us - prev_t) * 1e-6 / window_s
+                b = 1.0 / n
+                if b > a:
+                    a = b
+                if not a < 1.0:
+                    a = 1.0
+                var += a * (d2 - var)
+        if ki[_KI_HAS_LAST] != 0 and t_us > ki[_KI_LAST]:
+            dt = t_us - ki[_KI_LAST]
+            cnt = ki[_KI_CNT]
+            head = ki[_KI_HEAD]
+            if cnt == _CADENCE_N and ki[_KI_RING + head] == dt:
+                ki[_KI_RING + head] = dt  # the interval that leaves is the one that comes: same median
+                head = (head + 1) % _CADENCE_N
+            else:
+                if cnt == _CADENCE_N:
+                    ki[_KI_RING + head] = dt
+                    head = (head + 1) % _CADENCE_N
+                else:
+                    ki[_KI_RING + (head + cnt) % _CADENCE_N] = dt
+                    cnt += 1
+                for j in range(cnt):
+                    tmp[j] = ki[_KI_RING + (head + j) % _CADENCE_N]
+                iv_us = np.sort(tmp[:cnt])[cnt // 2]
+                has_iv = True
+            ki[_KI_CNT] = cnt
+            ki[_KI_HEAD] = head
+        ki[_KI_HAS_LAST] = 1
+        ki[_KI_LAST] = t_us
+        ht[hn] = t_us
+        hf[hn] = f_up
+        hn += 1
+        prev_t = t_us
+        prev_f = f_up
+        has_prev = True
+    ks[0] = var
+    ki[_KI_N] = n
+    ki[_KI_HAS_IV] = 1 if has_iv else 0
+    ki[_KI_IV] = iv_us
+    if not started and hn > 1:  # keep only the latest until the first baro
+        ht[0] = ht[hn - 1]
+        hf[0] = hf[hn - 1]
+        hn = 1
+    if not integrate:
+        return hn, 0, False, 0.0, 0.0, 0.0
+    # the zero-order-hold integral, as _integrate_reference
+    iv_s = iv_us * 1e-6 if has_iv else 0.0
+    hs = hold_intervals * iv_s
+    hold_us = int((hs if hs > hold_max_s else hold_max_s) * 1e6)
+    scatter = 0.0 if var != var else (0.0 if 0.0 > var else var)
+    t = t0
+    h = 0
+    while hn - h > 1 and ht[h + 1] <= t:
+        h += 1
+    dp = 0.0
+    dv = 0.0
+    vsum = 0.0
+    hold_s = hold_us * 1e-6
+    unknown_us = 0
+    unknown = False
+    while t < t_end:
+        if hn - h < 1:
+            return -1, 0, False, 0.0, 0.0, 0.0
+        t_h = ht[h]
+        f = hf[h]
+        has_nxt = hn - h > 1
+        nxt = ht[h + 1] if has_nxt else 0
+        seg_end = t_end if not has_nxt or nxt > t_end else nxt
+        held_end = t_h + hold_us
+        if t > held_end:
+            held_end = t
+        if seg_end < held_end:
+            held_end = seg_end
+        tau = (held_end - t) * 1e-6
+        if tau > 0.0:
+            acc = f - g
+            dp += dv * tau + 0.5 * acc * tau * tau
+            dv += acc * tau
+            m = tau if tau > iv_s else iv_s
+            if hold_s < m:
+                m = hold_s
+            vsum += scatter * tau * m
+        tau = (seg_end - held_end) * 1e-6
+        if tau > 0.0:
+            acc = 0.0
+            dp += dv * tau + 0.5 * acc * tau * tau
+            dv += acc * tau
+            vsum += kin_var * tau * kin_tau
+            unknown_us += seg_end - held_end
+            unknown = True
+        t = seg_end
+        if has_nxt and nxt <= t_end:
+            h += 1
+    if h > 0:
+        for j in range(hn - h):
+            ht[j] = ht[h + j]
+            hf[j] = hf[h + j]
+        hn -= h
+    return hn, unknown_us, unknown, dp, dv, vsum
+
+
+class EpochBuilder:
+    """Samples in, epochs out. One instance per vehicle and boot.
+
+    ``compiled`` (the default) takes the IMU samples and integrates them
+    with :func:`imu_kernel`; ``compiled=False`` with the readable reference
+    (:meth:`_take_imu_reference`, :meth:`_integrate_reference`), which
+    ``tests/test_epochs.py`` holds it to, float for float."""
+
+    def __init__(self, cfg: Config, compiled: bool = True):
         f = cfg.filter
+        self._compiled = compiled
         self._f = f
         self._g = f.gravity_mps2
         self._gnss_cfg = cfg.sensors.gnss
@@ -133,8 +294,17 @@ class EpochBuilder:
         self.reset()
 
     def reset(self) -> None:
-        self._imu: deque[tuple[int, float]] = deque()  # (t_us, f_up); imu[0] holds at the last epoch
-        self._raw: list[tuple[int, float]] = []  # (t_us, f_up) not yet taken into _imu (see _take_imu)
+        # IMU samples not yet taken (see _take_imu): times and specific forces
+        self._raw_t: list[int] = []
+        self._raw_f: list[float] = []
+        # the samples taken, of which the first holds at the last epoch: a deque of
+        # (t_us, f_up) for the reference, arrays (_ht, _hf)[:_hn] for the kernel
+        self._imu: deque[tuple[int, float]] = deque()
+        self._ht = np.empty(64, np.int64)
+        self._hf = np.empty(64, np.float64)
+        self._hn = 0
+        self._ks = np.full(1, math.nan)  # the kernel's scatter variance
+        self._ki = np.zeros(_KI_RING + _CADENCE_N, np.int64)  # and its integer state
         self._last_imu_t: Optional[int] = None
         self._epoch_t: Optional[int] = None  # None until started
         self._pending_baro: deque[BaroHeight] = deque()
@@ -221,8 +391,9 @@ class EpochBuilder:
             self.counters["imu_not_increasing"] += 1
             return []
         self._last_imu_t = t_us
-        raw = self._raw
-        raw.append((t_us, f_up))
+        raw = self._raw_t
+        raw.append(t_us)
+        self._raw_f.append(f_up)
         epoch_t = self._epoch_t
         if epoch_t is None:  # not started: only the latest sample is kept
             if len(raw) >= _RAW_MAX:
@@ -244,13 +415,47 @@ class EpochBuilder:
         return out
 
     def _take_imu(self) -> None:
-        """Take the IMU samples waiting in ``_raw``, in order: each one's
+        """Take the IMU samples waiting in ``_raw_t``/``_raw_f`` (see :meth:`_take_imu_reference`)."""
+        if self._compiled:
+            if self._raw_t:
+                self._imu_pass(False, 0)
+        else:
+            self._take_imu_reference()
+
+    def _imu_pass(self, integrate: bool, t_end: int) -> tuple[float, float, float]:
+        """:func:`imu_kernel` over the samples waiting and those held."""
+        rt, rf = self._raw_t, self._raw_f
+        need = self._hn + len(rt)
+        if need > self._ht.shape[0]:
+            cap = max(2 * self._ht.shape[0], need)
+            ht, hf = np.empty(cap, np.int64), np.empty(cap, np.float64)
+            ht[:self._hn] = self._ht[:self._hn]
+            hf[:self._hn] = self._hf[:self._hn]
+            self._ht, self._hf = ht, hf
+        f, m = self._f, self._model
+        hn, unknown_us, unknown, dp, dv, var = imu_kernel(
+            np.array(rt, np.int64), np.array(rf, np.float64), self._ht, self._hf, self._hn, self._ks, self._ki,
+            self._epoch_t is not None, integrate, self._epoch_t if integrate else 0, t_end, float(self._g),
+            float(f.imu_hold_max_s), float(f.imu_hold_intervals), float(f.kinematic_accel_sigma_mps2 ** 2),
+            float(f.kinematic_accel_tau_s), float(f.imu_scatter_window_s), m.accel_noise_form == "printed",
+            float(m.sigma_a_mps2), float(m.alpha_a_per_s))
+        rt.clear()
+        rf.clear()
+        if hn < 0:
+            raise IndexError("no IMU sample to integrate from")
+        self._hn = hn
+        if unknown:
+            self.counters["imu_unknown_us"] += unknown_us
+        return dp, dv, var
+
+    def _take_imu_reference(self) -> None:
+        """Take the IMU samples waiting in ``_raw_t``/``_raw_f``, in order: each one's
         scatter against the previous sample (beyond the modelled INS white
         noise, whose per-sample variance q_a(T)^2 the filters' process noise
         already carries; the running mean may go negative, it is used clamped
         at 0), the IMU cadence, and the hold queue (only the latest sample
         before the first epoch)."""
-        raw = self._raw
+        raw = list(zip(self._raw_t, self._raw_f))
         if not raw:
             return
         imu = self._imu
@@ -296,7 +501,8 @@ class EpochBuilder:
         self._scatter_var = var
         self._scatter_n = n
         imu.extend(raw)
-        raw.clear()
+        self._raw_t.clear()
+        self._raw_f.clear()
         if self._epoch_t is None:  # not started
             while len(imu) > 1:
                 imu.popleft()  # keep only the latest until the first baro
@@ -404,9 +610,16 @@ class EpochBuilder:
 
     def _integrate_to(self, t_end: int) -> tuple[float, float, float]:
         """Zero-order-hold integral of ``f_up - g`` from the last epoch to
+        ``t_end``: ``(dp, dv, dv_var)`` (see :meth:`_integrate_reference`)."""
+        if self._compiled:
+            return self._imu_pass(True, t_end)
+        return self._integrate_reference(t_end)
+
+    def _integrate_reference(self, t_end: int) -> tuple[float, float, float]:
+        """Zero-order-hold integral of ``f_up - g`` from the last epoch to
         ``t_end``: ``(dp, dv, dv_var)``. A sample holds for at most the hold
         limit; beyond it the acceleration is unknown (zero mean)."""
-        self._take_imu()
+        self._take_imu_reference()
         g = self._g
         t = self._epoch_t
         imu = self._imu
