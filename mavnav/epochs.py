@@ -291,6 +291,12 @@ class EpochBuilder:
         self.counters: Counter[str] = Counter()
         # q_a(T)^2 by T: the IMU scatter takes it off for every sample, at a handful of distinct T
         self._q2_by_tau: dict[float, float] = {}
+        m = self._model
+        # imu_kernel's constants, as the reference reads them
+        self._kparams = (float(self._g), float(f.imu_hold_max_s), float(f.imu_hold_intervals),
+                         float(f.kinematic_accel_sigma_mps2 ** 2), float(f.kinematic_accel_tau_s),
+                         float(f.imu_scatter_window_s), m.accel_noise_form == "printed", float(m.sigma_a_mps2),
+                         float(m.alpha_a_per_s))
         self.reset()
 
     def reset(self) -> None:
@@ -432,13 +438,9 @@ class EpochBuilder:
             ht[:self._hn] = self._ht[:self._hn]
             hf[:self._hn] = self._hf[:self._hn]
             self._ht, self._hf = ht, hf
-        f, m = self._f, self._model
         hn, unknown_us, unknown, dp, dv, var = imu_kernel(
             np.array(rt, np.int64), np.array(rf, np.float64), self._ht, self._hf, self._hn, self._ks, self._ki,
-            self._epoch_t is not None, integrate, self._epoch_t if integrate else 0, t_end, float(self._g),
-            float(f.imu_hold_max_s), float(f.imu_hold_intervals), float(f.kinematic_accel_sigma_mps2 ** 2),
-            float(f.kinematic_accel_tau_s), float(f.imu_scatter_window_s), m.accel_noise_form == "printed",
-            float(m.sigma_a_mps2), float(m.alpha_a_per_s))
+            self._epoch_t is not None, integrate, self._epoch_t if integrate else 0, t_end, *self._kparams)
         rt.clear()
         rf.clear()
         if hn < 0:
