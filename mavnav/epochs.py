@@ -46,6 +46,7 @@ Pure: no clock, no I/O. ``push(sample)`` returns the epochs it completed;
 from __future__ import annotations
 
 import math
+from bisect import bisect_left, insort
 from collections import Counter, deque
 from dataclasses import dataclass
 from typing import Optional, Union
@@ -291,6 +292,8 @@ class EpochBuilder:
         self.counters: Counter[str] = Counter()
         # q_a(T)^2 by T: the IMU scatter takes it off for every sample, at a handful of distinct T
         self._q2_by_tau: dict[float, float] = {}
+        # _latency_us by (baro interval, the stream's interval)
+        self._latency_by_iv: dict[tuple, int] = {}
         m = self._model
         # imu_kernel's constants, as the reference reads them
         self._kparams = (float(self._g), float(f.imu_hold_max_s), float(f.imu_hold_intervals),
@@ -324,6 +327,7 @@ class EpochBuilder:
         self._scatter_var = math.nan  # of f_up between consecutive IMU samples, (m/s^2)^2
         self._scatter_n = 0
         self._baro_d2: deque[float] = deque(maxlen=self._baro_cfg.white_window)  # |second differences|
+        self._baro_d2_sorted: list[float] = []  # the same, in order (None once a NaN came: sorted() each time)
         self._baro_d2_gm: deque[float] = deque(maxlen=self._baro_cfg.white_window)  # modelled u's share, m^2
         self._baro_last2: deque[float] = deque(maxlen=2)
         self._baro_last2_t: deque[int] = deque(maxlen=2)
@@ -352,10 +356,16 @@ class EpochBuilder:
         return self._gap_us
 
     def _latency_us(self, which: str) -> int:
-        f = self._f
-        lim = max(f.max_meas_latency_s,
-                  f.meas_latency_intervals * (self._interval_s("baro") + self._interval_s(which)))
-        return int(1e6 * min(lim, f.max_meas_age_s))
+        key = (self._cadence["baro"].interval_us, self._cadence[which].interval_us)
+        lim_us = self._latency_by_iv.get(key)
+        if lim_us is None:  # once per pair of cadences (they change seldom)
+            if len(self._latency_by_iv) >= 1024:  # jittery clocks: bounded
+                self._latency_by_iv.clear()
+            f = self._f
+            lim = max(f.max_meas_latency_s,
+                      f.meas_latency_intervals * (self._interval_s("baro") + self._interval_s(which)))
+            lim_us = self._latency_by_iv[key] = int(1e6 * min(lim, f.max_meas_age_s))
+        return lim_us
 
     def _hold_s(self) -> float:
         f = self._f
@@ -576,11 +586,20 @@ class EpochBuilder:
         c = self._baro_cfg
         last = self._baro_last2
         if len(last) == 2:
-            self._baro_d2.append(abs(h_m - 2.0 * last[1] + last[0]))
+            d2 = abs(h_m - 2.0 * last[1] + last[0])
+            d2s = self._baro_d2_sorted
+            if d2s is not None:
+                if d2 != d2:
+                    self._baro_d2_sorted = d2s = None
+                else:
+                    if len(self._baro_d2) == self._baro_d2.maxlen:
+                        del d2s[bisect_left(d2s, self._baro_d2[0])]  # the one that leaves
+                    insort(d2s, d2)
+            self._baro_d2.append(d2)
             self._baro_d2_gm.append(self._gm_d2_var_m2(t_us))
             n = len(self._baro_d2)
             if n >= 5:
-                s = sorted(self._baro_d2)[n // 2] / 0.6745
+                s = (sorted(self._baro_d2) if d2s is None else d2s)[n // 2] / 0.6745
                 v_model = sum(self._baro_d2_gm) / n
                 # white noise beyond the model only when the data show it: the
                 # measured variance must exceed what the model's u alone gives
