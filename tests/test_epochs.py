@@ -362,3 +362,21 @@ def test_compiled_imu_pass_gives_the_reference_floats_on_a_recorded_flight():
     ref, comp = _run_both(items, cfg)
     assert len(ref[0]) > 1000
     assert comp == ref
+
+
+def test_baro_white_noise_median_window_kept_in_order_is_the_sorted_window():
+    """The ordered window _baro_noise keeps gives the median sorted() of the
+    window gives, sample by sample (ties and repeats included), and a NaN
+    difference falls back to sorting."""
+    import numpy as np
+
+    r = np.random.default_rng(5)
+    b = EpochBuilder(load_config(None))
+    b.push(imu(0.0))
+    b.push(baro(0.0))
+    hs = np.round(r.standard_normal(400) * 0.3, 2)  # rounded: many equal differences
+    for k, h in enumerate(hs, 1):
+        b.push(baro(0.05 * k, h=float(h)))
+        assert b._baro_d2_sorted == sorted(b._baro_d2)
+    b._baro_noise(math.nan, 10 ** 9)
+    assert b._baro_d2_sorted is None
