@@ -10,6 +10,9 @@ step, written to a temporary directory.
   (every message decoded and CRC-checked by pymavlink; nothing else done);
 * audit: :func:`mavnav.audit.audit_file` (ingestion, three filters,
   integrity monitor, audit statistics: the whole job);
+* its two halves, each timed alone: *ingest* (every sample and event of
+  :class:`mavnav.ingest.TlogSource`) and *estimator* (the audit's pipeline
+  over those samples, already built: epochs, filters, monitor, audit sink);
 * latency: each sample pushed through the monitor (the pipeline's fold, as
   ``run`` does on a live link) with a CSV sink, timed one by one with
   ``perf_counter``; p50, p99 and max over every message of the log.
@@ -29,10 +32,11 @@ from pathlib import Path
 import yaml
 from pymavlink import mavutil
 
-from mavnav.audit import audit_file
+from mavnav.audit import AuditSink, audit_file
 from mavnav.config import load_config
 from mavnav.ingest import TlogSource
 from mavnav.monitor import Monitor
+from mavnav.pipeline import run
 from mavnav.sim import scenario_from_dict, simulate
 from mavnav.sinks.csv_sink import csv_row
 
@@ -92,6 +96,9 @@ def main() -> None:
         audit_file(path, cfg)  # JIT (cached on disk) and page-cache warm-up
         t_bare, n_msgs = best(lambda: bare(path), args.repeat)
         t_audit, result = best(lambda: audit_file(path, cfg), args.repeat)
+        t_ingest, samples = best(lambda: list(TlogSource(path, cfg.ingest)), args.repeat)
+        t_est, _ = best(lambda: run(iter(samples), cfg, [AuditSink()]), args.repeat)
+        del samples
         lat = latency(path, cfg)
     lat_us = sorted(v * 1e6 for v in lat)
     p = lambda q: lat_us[min(len(lat_us) - 1, int(q * len(lat_us)))]
@@ -99,6 +106,8 @@ def main() -> None:
     print(f"bare pymavlink recv_msg loop : {t_bare:6.2f} s ({n_msgs / t_bare:8.0f} msg/s)")
     print(f"mavnav audit (whole job)     : {t_audit:6.2f} s ({n_msgs / t_audit:8.0f} msg/s)")
     print(f"ratio audit / bare parse     : {t_audit / t_bare:6.2f}x   (goal: <= 0.5x, issue 15)")
+    print(f"  alone: ingest {t_ingest:.2f} s = {t_ingest / t_bare:.2f}x bare, "
+          f"estimator {t_est:.2f} s = {t_est / t_bare:.2f}x bare ({t_est / result['epochs'] * 1e6:.0f} us per epoch)")
     print(f"live pipeline latency per message over {len(lat_us)} samples: "
           f"p50 {p(0.5):.1f} us, p99 {p(0.99):.1f} us, max {lat_us[-1]:.0f} us "
           f"(mean {statistics.fmean(lat_us):.1f} us)   (goal: p99 < 1000 us)")

@@ -210,6 +210,9 @@ def bank_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da, phi_g, q_g,
 
 
 PAIRS = ((GNSS, RNG), (GNSS, BARO), (RNG, BARO))
+# the index in PAIRS of the pair of channels a != b, either way round
+_PAIR_OF = tuple(tuple(next((p for p, ij in enumerate(PAIRS) if ij in ((a, b), (b, a))), -1) for b in range(N_CH))
+                 for a in range(N_CH))
 
 
 @njit(cache=True)
@@ -482,11 +485,9 @@ class ChannelBank:
 
     def height_cov(self, idx) -> list[list[float]]:
         """Error covariance of the heights of channels ``idx`` (with cross terms)."""
-        P, Pc = self.P, self.Pc
-        hh = {(a, a): P[a, 0, 0] for a in idx}
-        for p, (i, j) in enumerate(PAIRS):
-            hh[(i, j)] = hh[(j, i)] = Pc[p, 0, 0]
-        return [[float(hh[(a, b)]) for b in idx] for a in idx]
+        ph = self.P[:, 0, 0].tolist()  # Python floats, as float() of each element
+        pc = self.Pc[:, 0, 0].tolist()
+        return [[ph[a] if a == b else pc[_PAIR_OF[a][b]] for b in idx] for a in idx]
 
     def _set_cross(self, a: int, b: int, M: np.ndarray) -> None:
         for p, (i, j) in enumerate(PAIRS):

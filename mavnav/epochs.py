@@ -46,12 +46,16 @@ Pure: no clock, no I/O. ``push(sample)`` returns the epochs it completed;
 from __future__ import annotations
 
 import math
+from bisect import bisect_left, insort
 from collections import Counter, deque
 from dataclasses import dataclass
 from typing import Optional, Union
 
+import numpy as np
+
 from .channel import AuxMeasurement, EpochInputs, Model, accel_noise_q
 from .config import Config
+from .jit import njit
 from .samples import BaroHeight, GnssHeight, RangeHeight, Reboot, SpecificForceUp
 
 
@@ -87,6 +91,8 @@ class EpochStart:
 
 Epoch = Union[EpochStart, EpochInputs]
 
+_RAW_MAX = 256  # IMU samples that wait for an epoch before they are taken anyway (bounded memory)
+
 
 class Cadence:
     """The typical interval of one stream: the median of its last intervals."""
@@ -111,11 +117,169 @@ class Cadence:
         self._last_t = t_us
 
 
-class EpochBuilder:
-    """Samples in, epochs out. One instance per vehicle and boot."""
+# The compiled IMU pass's integer state (``_ki``): the scatter's sample count,
+# then the IMU cadence (Cadence with n = 9): its last time, its interval, and
+# the ring of its last intervals (count, index of the oldest, 9 slots).
+_KI_N, _KI_HAS_LAST, _KI_LAST, _KI_HAS_IV, _KI_IV, _KI_CNT, _KI_HEAD, _KI_RING = range(8)
+_CADENCE_N = 9
 
-    def __init__(self, cfg: Config):
+
+@njit(cache=True)
+def _q2_kernel(tau, printed, sigma_a, alpha_a):  # pragma: no cover - compiled
+    """``accel_noise_q(tau) ** 2`` (the same operations)."""
+    if printed:
+        q = sigma_a * math.sqrt(2.0 * tau / alpha_a)
+    else:
+        q = sigma_a * math.sqrt(2.0 / (alpha_a * tau))
+    return q ** 2
+
+
+@njit(cache=True)
+def imu_kernel(raw_t, raw_f, ht, hf, hn, ks, ki, started, integrate, t0, t_end, g, hold_max_s, hold_intervals,
+               kin_var, kin_tau, window_s, printed, sigma_a, alpha_a):  # pragma: no cover - compiled
+    """:meth:`EpochBuilder._take_imu_reference` then, with ``integrate``,
+    :meth:`EpochBuilder._integrate_reference` from ``t0`` to ``t_end``, over
+    arrays: the held samples ``ht, hf[:hn]`` (the reference's deque; room
+    for the new ones behind them), the new samples ``raw_t, raw_f``, the
+    scatter variance ``ks[0]`` and the integer state ``ki`` (see ``_KI_*``).
+    The same operations in the same order as the reference: the same floats.
+    Returns ``(hn, unknown_us, unknown, dp, dv, dv_var)``; ``hn = -1`` when
+    there is no sample to integrate from (the reference's IndexError)."""
+    var = ks[0]
+    n = ki[_KI_N]
+    has_iv = ki[_KI_HAS_IV] != 0
+    iv_us = ki[_KI_IV]
+    has_prev = hn > 0
+    prev_t = ht[hn - 1] if has_prev else 0
+    prev_f = hf[hn - 1] if has_prev else 0.0
+    tmp = np.empty(_CADENCE_N, np.int64)
+    for k in range(raw_t.shape[0]):
+        t_us = raw_t[k]
+        f_up = raw_f[k]
+        if has_prev:
+            tau = (t_us - prev_t) * 1e-6
+            iv = iv_us * 1e-6 if has_iv else 0.0
+            if iv == 0.0:
+                iv = tau
+            qt = _q2_kernel(tau, printed, sigma_a, alpha_a)
+            qi = _q2_kernel(iv, printed, sigma_a, alpha_a)
+            d2 = 0.5 * (f_up - prev_f) ** 2 - 0.5 * (qt + qi)
+            n += 1
+            if var != var:
+                var = d2
+            else:
+                a = (t_us - prev_t) * 1e-6 / window_s
+                b = 1.0 / n
+                if b > a:
+                    a = b
+                if not a < 1.0:
+                    a = 1.0
+                var += a * (d2 - var)
+        if ki[_KI_HAS_LAST] != 0 and t_us > ki[_KI_LAST]:
+            dt = t_us - ki[_KI_LAST]
+            cnt = ki[_KI_CNT]
+            head = ki[_KI_HEAD]
+            if cnt == _CADENCE_N and ki[_KI_RING + head] == dt:
+                ki[_KI_RING + head] = dt  # the interval that leaves is the one that comes: same median
+                head = (head + 1) % _CADENCE_N
+            else:
+                if cnt == _CADENCE_N:
+                    ki[_KI_RING + head] = dt
+                    head = (head + 1) % _CADENCE_N
+                else:
+                    ki[_KI_RING + (head + cnt) % _CADENCE_N] = dt
+                    cnt += 1
+                for j in range(cnt):
+                    tmp[j] = ki[_KI_RING + (head + j) % _CADENCE_N]
+                iv_us = np.sort(tmp[:cnt])[cnt // 2]
+                has_iv = True
+            ki[_KI_CNT] = cnt
+            ki[_KI_HEAD] = head
+        ki[_KI_HAS_LAST] = 1
+        ki[_KI_LAST] = t_us
+        ht[hn] = t_us
+        hf[hn] = f_up
+        hn += 1
+        prev_t = t_us
+        prev_f = f_up
+        has_prev = True
+    ks[0] = var
+    ki[_KI_N] = n
+    ki[_KI_HAS_IV] = 1 if has_iv else 0
+    ki[_KI_IV] = iv_us
+    if not started and hn > 1:  # keep only the latest until the first baro
+        ht[0] = ht[hn - 1]
+        hf[0] = hf[hn - 1]
+        hn = 1
+    if not integrate:
+        return hn, 0, False, 0.0, 0.0, 0.0
+    # the zero-order-hold integral, as _integrate_reference
+    iv_s = iv_us * 1e-6 if has_iv else 0.0
+    hs = hold_intervals * iv_s
+    hold_us = int((hs if hs > hold_max_s else hold_max_s) * 1e6)
+    scatter = 0.0 if var != var else (0.0 if 0.0 > var else var)
+    t = t0
+    h = 0
+    while hn - h > 1 and ht[h + 1] <= t:
+        h += 1
+    dp = 0.0
+    dv = 0.0
+    vsum = 0.0
+    hold_s = hold_us * 1e-6
+    unknown_us = 0
+    unknown = False
+    while t < t_end:
+        if hn - h < 1:
+            return -1, 0, False, 0.0, 0.0, 0.0
+        t_h = ht[h]
+        f = hf[h]
+        has_nxt = hn - h > 1
+        nxt = ht[h + 1] if has_nxt else 0
+        seg_end = t_end if not has_nxt or nxt > t_end else nxt
+        held_end = t_h + hold_us
+        if t > held_end:
+            held_end = t
+        if seg_end < held_end:
+            held_end = seg_end
+        tau = (held_end - t) * 1e-6
+        if tau > 0.0:
+            acc = f - g
+            dp += dv * tau + 0.5 * acc * tau * tau
+            dv += acc * tau
+            m = tau if tau > iv_s else iv_s
+            if hold_s < m:
+                m = hold_s
+            vsum += scatter * tau * m
+        tau = (seg_end - held_end) * 1e-6
+        if tau > 0.0:
+            acc = 0.0
+            dp += dv * tau + 0.5 * acc * tau * tau
+            dv += acc * tau
+            vsum += kin_var * tau * kin_tau
+            unknown_us += seg_end - held_end
+            unknown = True
+        t = seg_end
+        if has_nxt and nxt <= t_end:
+            h += 1
+    if h > 0:
+        for j in range(hn - h):
+            ht[j] = ht[h + j]
+            hf[j] = hf[h + j]
+        hn -= h
+    return hn, unknown_us, unknown, dp, dv, vsum
+
+
+class EpochBuilder:
+    """Samples in, epochs out. One instance per vehicle and boot.
+
+    ``compiled`` (the default) takes the IMU samples and integrates them
+    with :func:`imu_kernel`; ``compiled=False`` with the readable reference
+    (:meth:`_take_imu_reference`, :meth:`_integrate_reference`), which
+    ``tests/test_epochs.py`` holds it to, float for float."""
+
+    def __init__(self, cfg: Config, compiled: bool = True):
         f = cfg.filter
+        self._compiled = compiled
         self._f = f
         self._g = f.gravity_mps2
         self._gnss_cfg = cfg.sensors.gnss
@@ -128,10 +292,28 @@ class EpochBuilder:
         self.counters: Counter[str] = Counter()
         # q_a(T)^2 by T: the IMU scatter takes it off for every sample, at a handful of distinct T
         self._q2_by_tau: dict[float, float] = {}
+        # _latency_us by (baro interval, the stream's interval)
+        self._latency_by_iv: dict[tuple, int] = {}
+        m = self._model
+        # imu_kernel's constants, as the reference reads them
+        self._kparams = (float(self._g), float(f.imu_hold_max_s), float(f.imu_hold_intervals),
+                         float(f.kinematic_accel_sigma_mps2 ** 2), float(f.kinematic_accel_tau_s),
+                         float(f.imu_scatter_window_s), m.accel_noise_form == "printed", float(m.sigma_a_mps2),
+                         float(m.alpha_a_per_s))
         self.reset()
 
     def reset(self) -> None:
-        self._imu: deque[tuple[int, float]] = deque()  # (t_us, f_up); imu[0] holds at the last epoch
+        # IMU samples not yet taken (see _take_imu): times and specific forces
+        self._raw_t: list[int] = []
+        self._raw_f: list[float] = []
+        # the samples taken, of which the first holds at the last epoch: a deque of
+        # (t_us, f_up) for the reference, arrays (_ht, _hf)[:_hn] for the kernel
+        self._imu: deque[tuple[int, float]] = deque()
+        self._ht = np.empty(64, np.int64)
+        self._hf = np.empty(64, np.float64)
+        self._hn = 0
+        self._ks = np.full(1, math.nan)  # the kernel's scatter variance
+        self._ki = np.zeros(_KI_RING + _CADENCE_N, np.int64)  # and its integer state
         self._last_imu_t: Optional[int] = None
         self._epoch_t: Optional[int] = None  # None until started
         self._pending_baro: deque[BaroHeight] = deque()
@@ -145,6 +327,7 @@ class EpochBuilder:
         self._scatter_var = math.nan  # of f_up between consecutive IMU samples, (m/s^2)^2
         self._scatter_n = 0
         self._baro_d2: deque[float] = deque(maxlen=self._baro_cfg.white_window)  # |second differences|
+        self._baro_d2_sorted: list[float] = []  # the same, in order (None once a NaN came: sorted() each time)
         self._baro_d2_gm: deque[float] = deque(maxlen=self._baro_cfg.white_window)  # modelled u's share, m^2
         self._baro_last2: deque[float] = deque(maxlen=2)
         self._baro_last2_t: deque[int] = deque(maxlen=2)
@@ -173,10 +356,16 @@ class EpochBuilder:
         return self._gap_us
 
     def _latency_us(self, which: str) -> int:
-        f = self._f
-        lim = max(f.max_meas_latency_s,
-                  f.meas_latency_intervals * (self._interval_s("baro") + self._interval_s(which)))
-        return int(1e6 * min(lim, f.max_meas_age_s))
+        key = (self._cadence["baro"].interval_us, self._cadence[which].interval_us)
+        lim_us = self._latency_by_iv.get(key)
+        if lim_us is None:  # once per pair of cadences (they change seldom)
+            if len(self._latency_by_iv) >= 1024:  # jittery clocks: bounded
+                self._latency_by_iv.clear()
+            f = self._f
+            lim = max(f.max_meas_latency_s,
+                      f.meas_latency_intervals * (self._interval_s("baro") + self._interval_s(which)))
+            lim_us = self._latency_by_iv[key] = int(1e6 * min(lim, f.max_meas_age_s))
+        return lim_us
 
     def _hold_s(self) -> float:
         f = self._f
@@ -210,43 +399,125 @@ class EpochBuilder:
         return q2
 
     def _on_imu(self, t_us: int, f_up: float) -> list[Epoch]:
-        # One call per IMU sample (200-400 Hz onboard): the attributes it
-        # needs are read once, the noise terms come from a table by interval.
+        # One call per IMU sample (200-400 Hz onboard), so it does the least:
+        # the sample waits in ``_raw`` and its scatter, cadence and hold are
+        # computed in one pass (:meth:`_take_imu`) when an epoch needs them.
         last_t = self._last_imu_t
         if last_t is not None and t_us <= last_t:
             self.counters["imu_not_increasing"] += 1
             return []
-        imu = self._imu
-        cadence = self._imu_cadence
-        if imu:
-            prev_t, prev_f = imu[-1]
-            # scatter beyond the modelled INS white noise, whose per-sample
-            # variance q_a(T)^2 the filters' process noise already carries
-            # (the running mean may go negative; it is used clamped at 0)
-            tau = (t_us - prev_t) * 1e-6
-            iv_us = cadence.interval_us
-            iv = (0.0 if iv_us is None else iv_us * 1e-6) or tau
-            d2 = 0.5 * (f_up - prev_f) ** 2 - 0.5 * (self._q2(tau) + self._q2(iv))
-            self._scatter_n += 1
-            if self._scatter_var != self._scatter_var:
-                self._scatter_var = d2
-            else:  # a running mean until the window is full, then exponential
-                a = min(1.0, max((t_us - prev_t) * 1e-6 / self._f.imu_scatter_window_s, 1.0 / self._scatter_n))
-                self._scatter_var += a * (d2 - self._scatter_var)
-        cadence.push(t_us)
-        imu.append((t_us, f_up))
         self._last_imu_t = t_us
-        out: list[Epoch] = []
-        if self._epoch_t is None:  # not started
-            while len(imu) > 1:
-                imu.popleft()  # keep only the latest until the first baro
-            return out
+        raw = self._raw_t
+        raw.append(t_us)
+        self._raw_f.append(f_up)
+        epoch_t = self._epoch_t
+        if epoch_t is None:  # not started: only the latest sample is kept
+            if len(raw) >= _RAW_MAX:
+                self._take_imu()
+            return []
         pending = self._pending_baro
+        if pending:
+            if pending[0].t_us > t_us:
+                return []
+        elif t_us - epoch_t <= self._max_gap_us():
+            if len(raw) >= _RAW_MAX:
+                self._take_imu()
+            return []
+        out: list[Epoch] = []
         while pending and pending[0].t_us <= t_us:
             out.append(self._epoch_at(pending.popleft()))
         if not pending and t_us - self._epoch_t > self._max_gap_us():
             out.append(self._forced_epoch(t_us))
         return out
+
+    def _take_imu(self) -> None:
+        """Take the IMU samples waiting in ``_raw_t``/``_raw_f`` (see :meth:`_take_imu_reference`)."""
+        if self._compiled:
+            if self._raw_t:
+                self._imu_pass(False, 0)
+        else:
+            self._take_imu_reference()
+
+    def _imu_pass(self, integrate: bool, t_end: int) -> tuple[float, float, float]:
+        """:func:`imu_kernel` over the samples waiting and those held."""
+        rt, rf = self._raw_t, self._raw_f
+        need = self._hn + len(rt)
+        if need > self._ht.shape[0]:
+            cap = max(2 * self._ht.shape[0], need)
+            ht, hf = np.empty(cap, np.int64), np.empty(cap, np.float64)
+            ht[:self._hn] = self._ht[:self._hn]
+            hf[:self._hn] = self._hf[:self._hn]
+            self._ht, self._hf = ht, hf
+        hn, unknown_us, unknown, dp, dv, var = imu_kernel(
+            np.array(rt, np.int64), np.array(rf, np.float64), self._ht, self._hf, self._hn, self._ks, self._ki,
+            self._epoch_t is not None, integrate, self._epoch_t if integrate else 0, t_end, *self._kparams)
+        rt.clear()
+        rf.clear()
+        if hn < 0:
+            raise IndexError("no IMU sample to integrate from")
+        self._hn = hn
+        if unknown:
+            self.counters["imu_unknown_us"] += unknown_us
+        return dp, dv, var
+
+    def _take_imu_reference(self) -> None:
+        """Take the IMU samples waiting in ``_raw_t``/``_raw_f``, in order: each one's
+        scatter against the previous sample (beyond the modelled INS white
+        noise, whose per-sample variance q_a(T)^2 the filters' process noise
+        already carries; the running mean may go negative, it is used clamped
+        at 0), the IMU cadence, and the hold queue (only the latest sample
+        before the first epoch)."""
+        raw = list(zip(self._raw_t, self._raw_f))
+        if not raw:
+            return
+        imu = self._imu
+        cadence = self._imu_cadence
+        q2 = self._q2_by_tau
+        window_s = self._f.imu_scatter_window_s
+        var = self._scatter_var
+        n = self._scatter_n
+        prev_t, prev_f = imu[-1] if imu else (None, 0.0)
+        # the IMU cadence (Cadence.push), inline
+        c_last = cadence._last_t
+        dts = cadence._dts
+        c_max = dts.maxlen
+        interval_us = cadence.interval_us
+        for t_us, f_up in raw:
+            if prev_t is not None:
+                tau = (t_us - prev_t) * 1e-6
+                iv = (0.0 if interval_us is None else interval_us * 1e-6) or tau
+                qt = q2.get(tau)
+                if qt is None:
+                    qt = self._q2(tau)
+                qi = q2.get(iv)
+                if qi is None:
+                    qi = self._q2(iv)
+                d2 = 0.5 * (f_up - prev_f) ** 2 - 0.5 * (qt + qi)
+                n += 1
+                if var != var:
+                    var = d2
+                else:  # a running mean until the window is full, then exponential
+                    a = min(1.0, max((t_us - prev_t) * 1e-6 / window_s, 1.0 / n))
+                    var += a * (d2 - var)
+            if c_last is not None and t_us > c_last:
+                dt = t_us - c_last
+                if len(dts) == c_max and dts[0] == dt:
+                    dts.append(dt)  # the interval that leaves is the one that comes: same median
+                else:
+                    dts.append(dt)
+                    interval_us = sorted(dts)[len(dts) // 2]
+            c_last = t_us
+            prev_t, prev_f = t_us, f_up
+        cadence._last_t = c_last
+        cadence.interval_us = interval_us
+        self._scatter_var = var
+        self._scatter_n = n
+        imu.extend(raw)
+        self._raw_t.clear()
+        self._raw_f.clear()
+        if self._epoch_t is None:  # not started
+            while len(imu) > 1:
+                imu.popleft()  # keep only the latest until the first baro
 
     def _is_repeat(self, b: BaroHeight) -> bool:
         last = self._last_baro
@@ -258,6 +529,7 @@ class EpochBuilder:
             if self._last_imu_t is None:
                 self.counters["baro_before_imu"] += 1
                 return []
+            self._take_imu()  # before the start: only the latest sample holds
             self._epoch_t = b.t_us
             self._last_baro = b
             self._cadence["baro"].push(b.t_us)
@@ -314,11 +586,20 @@ class EpochBuilder:
         c = self._baro_cfg
         last = self._baro_last2
         if len(last) == 2:
-            self._baro_d2.append(abs(h_m - 2.0 * last[1] + last[0]))
+            d2 = abs(h_m - 2.0 * last[1] + last[0])
+            d2s = self._baro_d2_sorted
+            if d2s is not None:
+                if d2 != d2:
+                    self._baro_d2_sorted = d2s = None
+                else:
+                    if len(self._baro_d2) == self._baro_d2.maxlen:
+                        del d2s[bisect_left(d2s, self._baro_d2[0])]  # the one that leaves
+                    insort(d2s, d2)
+            self._baro_d2.append(d2)
             self._baro_d2_gm.append(self._gm_d2_var_m2(t_us))
             n = len(self._baro_d2)
             if n >= 5:
-                s = sorted(self._baro_d2)[n // 2] / 0.6745
+                s = (sorted(self._baro_d2) if d2s is None else d2s)[n // 2] / 0.6745
                 v_model = sum(self._baro_d2_gm) / n
                 # white noise beyond the model only when the data show it: the
                 # measured variance must exceed what the model's u alone gives
@@ -350,8 +631,16 @@ class EpochBuilder:
 
     def _integrate_to(self, t_end: int) -> tuple[float, float, float]:
         """Zero-order-hold integral of ``f_up - g`` from the last epoch to
+        ``t_end``: ``(dp, dv, dv_var)`` (see :meth:`_integrate_reference`)."""
+        if self._compiled:
+            return self._imu_pass(True, t_end)
+        return self._integrate_reference(t_end)
+
+    def _integrate_reference(self, t_end: int) -> tuple[float, float, float]:
+        """Zero-order-hold integral of ``f_up - g`` from the last epoch to
         ``t_end``: ``(dp, dv, dv_var)``. A sample holds for at most the hold
         limit; beyond it the acceleration is unknown (zero mean)."""
+        self._take_imu_reference()
         g = self._g
         t = self._epoch_t
         imu = self._imu
@@ -364,26 +653,47 @@ class EpochBuilder:
         while len(imu) > 1 and imu[1][0] <= t:
             imu.popleft()
         dp = dv = var = 0.0
+        hold_s = hold_us * 1e-6
+        unknown_us = 0
+        unknown = False
+        n_imu = len(imu)
         while t < t_end:
             t_h, f = imu[0]
-            nxt = imu[1][0] if len(imu) > 1 else None
-            seg_end = t_end if nxt is None or nxt > t_end else nxt
-            held_end = min(seg_end, max(t, t_h + hold_us))
-            for a, z, known in ((t, held_end, True), (held_end, seg_end, False)):
-                tau = (z - a) * 1e-6
-                if tau <= 0.0:
-                    continue
-                acc = f - g if known else 0.0
+            if n_imu > 1:
+                nxt = imu[1][0]
+                seg_end = t_end if nxt > t_end else nxt
+            else:
+                nxt = None
+                seg_end = t_end
+            # min(seg_end, max(t, t_h + hold_us)): the held part, then the unknown rest
+            held_end = t_h + hold_us
+            if t > held_end:
+                held_end = t
+            if seg_end < held_end:
+                held_end = seg_end
+            tau = (held_end - t) * 1e-6
+            if tau > 0.0:
+                acc = f - g
                 dp += dv * tau + 0.5 * acc * tau * tau
                 dv += acc * tau
-                if known:
-                    var += scatter * tau * min(max(iv, tau), hold_us * 1e-6)
-                else:
-                    var += kin_var * tau * kin_tau
-                    self.counters["imu_unknown_us"] += z - a
+                m = tau if tau > iv else iv  # min(max(iv, tau), hold_s)
+                if hold_s < m:
+                    m = hold_s
+                var += scatter * tau * m
+            tau = (seg_end - held_end) * 1e-6
+            if tau > 0.0:
+                acc = 0.0
+                dp += dv * tau + 0.5 * acc * tau * tau
+                dv += acc * tau
+                var += kin_var * tau * kin_tau
+                unknown_us += seg_end - held_end
+                unknown = True
             t = seg_end
             if nxt is not None and nxt <= t_end:
                 imu.popleft()
+                n_imu -= 1
+        if unknown:
+            self.counters["imu_unknown_us"] += unknown_us
         return dp, dv, var
 
     def _aux_for(self, which: str, t_us: int) -> Optional[AuxMeasurement]:

@@ -38,25 +38,31 @@ def run(
     monitor = Monitor(cfg)
     frame = HomeFrame()
     out.start({"mode": cfg.monitor.mode, "config": cfg, **(info or {})})
+    push = monitor.push
+    on_sample = frame.sample
+    sample_out = out.sample
+    epoch_out = out.epoch
+    on_report = frame.report
+    spans = summary.spans
     try:
         for s in source:
-            out.sample(frame.sample(s))
+            sample_out(on_sample(s))
             if isinstance(s, Reboot):
                 summary.reboots += 1
-            for report, events in monitor.push(s):
+            for report, events in push(s):
                 summary.epochs += 1
+                t_us = report.t_us
                 if summary.first_t_us is None:
-                    summary.first_t_us = report.t_us
-                summary.last_t_us = report.t_us
-                spans = summary.spans
+                    summary.first_t_us = t_us
+                summary.last_t_us = t_us
                 if spans and spans[-1][0] == report.boot:
-                    spans[-1][2] = report.t_us
+                    spans[-1][2] = t_us
                 else:
-                    spans.append([report.boot, report.t_us, report.t_us])
+                    spans.append([report.boot, t_us, t_us])
                 for ev in events:
                     summary.alarms.append(ev)
                     out.alarm(ev)
-                out.epoch(frame.report(report))
+                epoch_out(on_report(report))
             if should_stop is not None and should_stop():
                 break
     finally:

@@ -295,3 +295,88 @@ def test_the_modelled_gauss_markov_baro_noise_is_not_counted_again_as_white(seed
     assert len(white) > 900
     assert sum(v > 0.0 for v in white) < 0.02 * len(white)
     assert max(white) < 0.1 ** 2
+
+
+# ---------------------------------------------------------------------- the compiled IMU pass
+
+
+def _rough_stream(seed):
+    """IMU at a jittery 50-400 Hz with silences beyond the hold, samples not
+    increasing, IMU before the first baro (more than a batch), a baro that
+    goes quiet (forced epochs), GNSS and rangefinder, and a reboot."""
+    import numpy as np
+
+    r = np.random.default_rng(seed)
+    items = []
+    for boot in (0, 1):
+        t = 0.0
+        items_boot = []
+        rate = float(r.choice([50.0, 200.0, 400.0]))
+        while t < 30.0:
+            t += float(r.exponential(1.0 / rate)) if r.random() < 0.3 else 1.0 / rate
+            if r.random() < 0.002:
+                t += float(r.uniform(0.05, 1.5))  # silent beyond the hold
+            items_boot.append(imu(t, G + float(r.standard_normal() * r.choice([0.1, 3.0]))))
+            if r.random() < 0.01:
+                items_boot.append(imu(t - float(r.uniform(0.0, 0.02))))  # behind the latest
+        for k in range(int(2.0 / 0.04), int(30.0 / 0.04)):
+            if 12.0 < k * 0.04 < 14.0:
+                continue  # the baro goes quiet: forced epochs
+            items_boot.append(baro(k * 0.04 + r.uniform(0.0, 0.004), h=float(r.standard_normal())))
+        items_boot += [gnss(0.2 * k + 0.05) for k in range(150)]
+        items_boot += [rng(0.05 * k + 0.01) for k in range(600)]
+        items_boot.sort(key=lambda s: s.t_us)
+        if boot:
+            items.append(Reboot(t_us=0, recv_s=0.0, boot=1, last_t_us=items[-1].t_us))
+        items += items_boot
+    return items
+
+
+def _run_both(items, cfg):
+    out = []
+    for compiled in (False, True):
+        b = EpochBuilder(cfg, compiled=compiled)
+        eps = [repr(e) for s in items for e in b.push(s)]
+        out.append((eps, sorted(b.counters.items())))
+    return out
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3, 4])
+def test_compiled_imu_pass_gives_the_reference_floats(seed):
+    """imu_kernel against _take_imu_reference/_integrate_reference: the same
+    epochs (every float, by repr) and the same counters."""
+    cfg = load_config(None)
+    ref, comp = _run_both(_rough_stream(seed), cfg)
+    assert len(ref[0]) > 1000
+    assert any(k == "imu_unknown_us" for k, _ in ref[1]) and any(k == "forced_epochs" for k, _ in ref[1])
+    assert comp == ref
+
+
+def test_compiled_imu_pass_gives_the_reference_floats_on_a_recorded_flight():
+    from mavnav.ingest import TlogSource
+
+    from tests.support.paths import SITL_LOGS
+
+    cfg = load_config(None)
+    items = list(TlogSource(SITL_LOGS / "px4_hover_gnss_step.tlog", cfg.ingest))
+    ref, comp = _run_both(items, cfg)
+    assert len(ref[0]) > 1000
+    assert comp == ref
+
+
+def test_baro_white_noise_median_window_kept_in_order_is_the_sorted_window():
+    """The ordered window _baro_noise keeps gives the median sorted() of the
+    window gives, sample by sample (ties and repeats included), and a NaN
+    difference falls back to sorting."""
+    import numpy as np
+
+    r = np.random.default_rng(5)
+    b = EpochBuilder(load_config(None))
+    b.push(imu(0.0))
+    b.push(baro(0.0))
+    hs = np.round(r.standard_normal(400) * 0.3, 2)  # rounded: many equal differences
+    for k, h in enumerate(hs, 1):
+        b.push(baro(0.05 * k, h=float(h)))
+        assert b._baro_d2_sorted == sorted(b._baro_d2)
+    b._baro_noise(math.nan, 10 ** 9)
+    assert b._baro_d2_sorted is None

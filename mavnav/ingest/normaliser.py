@@ -575,8 +575,9 @@ class Normaliser:
         return handler
 
     def _imu(self, fb, name, t_raw, usec: bool, recv_s, compid) -> None:
-        for it in self._noted(self.imu_sel, name):
-            self._imu_selected(it)
+        if self.imu_sel.chosen is None:  # _noted, inline: once chosen, nothing to note
+            for it in self.imu_sel.note(name, self.clock.last_t_us):
+                self._imu_selected(it)
         if not _finite(*fb):
             self._reject(recv_s, "nan", f"{name} with a non-finite acceleration")
             return
@@ -591,7 +592,14 @@ class Normaliser:
     def _imu_at(self, payload, t_us, recv_s) -> None:
         fb, name = payload
         item = ImuItem(t_us, recv_s, self.clock.boot, fb, name)
-        for it in self.imu_sel.offer(name, item):
+        sel = self.imu_sel
+        if sel.chosen is not None:  # SourceSelector.offer, inline: the source is chosen
+            if name == sel.chosen:
+                self._imu_selected(item)
+            else:
+                sel.dropped += 1
+            return
+        for it in sel.offer(name, item):
             self._imu_selected(it)
 
     def _imu_selected(self, item: ImuItem) -> None:
@@ -602,7 +610,18 @@ class Normaliser:
         self._resolve_attitude()
 
     def _resolve_attitude(self, flush: bool = False) -> None:
-        for item, q, nearest in self.att.resolve(self.clock.last_t_us, flush):
+        att = self.att
+        pend = att.pending
+        if not pend:
+            return  # nothing waits (att.resolve would release nothing)
+        now_us = self.clock.last_t_us
+        if not flush and now_us is not None:
+            ts = att._t  # att.resolve's own fast path, without the call: the head still waits
+            if ts:
+                t = pend[0][0]
+                if t > ts[-1] and now_us < t + att.wait_us:
+                    return
+        for item, q, nearest in att.resolve(now_us, flush):
             t_us, recv_s, boot, fb, name = item
             if q is None:
                 self._reject(recv_s, "no_attitude", f"{name}: no attitude within {self.cfg.attitude_max_age_s} s", t_us, boot)

@@ -199,6 +199,9 @@ class TimeBase:
         if self._cands:
             self._followers.append(_Follower(key, t_raw, recv_s, what, f))
             return []
+        off = self.streams.offsets.get(key)
+        if off is not None:  # StreamClocks.map, inline: the stream's clock is known (the estimate is not needed)
+            return [Placed(t_raw - off, recv_s, what, f), SETTLED]
         if est is None:
             est = self.clock.estimate(recv_s)
         out: List[Step] = [Placed(t_us, frecv, w, ff)

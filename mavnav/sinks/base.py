@@ -40,19 +40,38 @@ class Sink:
         pass
 
 
+_HOOKS = ("start", "sample", "epoch", "alarm", "close")
+
+
+def _noop(sink, hook: str) -> bool:
+    """Whether ``sink``'s ``hook`` is :class:`Sink`'s own no-op (calling it does nothing, and cannot fail)."""
+    return getattr(type(sink), hook, None) is getattr(Sink, hook) and hook not in getattr(sink, "__dict__", ())
+
+
 class SinkSet:
-    """Calls every sink; a sink that raises is reported once and dropped."""
+    """Calls every sink; a sink that raises is reported once and dropped.
+
+    A hook a sink leaves as :class:`Sink`'s no-op is not called (``sample``
+    runs for every sample of the log); the method is looked up at each call,
+    as a sink may replace its own."""
 
     def __init__(self, sinks: Iterable[Sink], summary: RunSummary):
         self._sinks = list(sinks)
         self._summary = summary
+        self._update()
+
+    def _update(self) -> None:
+        """The sinks each hook calls, in order (after a change of ``_sinks``)."""
+        self._by_hook = {h: tuple(s for s in self._sinks if not _noop(s, h)) for h in _HOOKS}
+        self._on_sample = self._by_hook["sample"]
+        self._on_epoch = self._by_hook["epoch"]
 
     @property
     def active(self) -> list[Sink]:
         return list(self._sinks)
 
     def _call(self, hook: str, *args) -> None:
-        for sink in list(self._sinks):
+        for sink in self._by_hook[hook]:
             try:
                 getattr(sink, hook)(*args)
             except Exception as exc:  # a sink must never stop the monitor
@@ -64,6 +83,7 @@ class SinkSet:
         log.warning("sink %s failed in %s (%s); it is dropped, the monitor goes on", sink.name, hook, text)
         if sink in self._sinks:
             self._sinks.remove(sink)
+            self._update()
         if hook != "close":
             try:
                 sink.close(self._summary)
@@ -74,10 +94,18 @@ class SinkSet:
         self._call("start", info)
 
     def sample(self, s) -> None:
-        self._call("sample", s)
+        for sink in self._on_sample:  # _call, inline: once per sample
+            try:
+                sink.sample(s)
+            except Exception as exc:
+                self._drop(sink, "sample", exc)
 
     def epoch(self, report: EpochReport) -> None:
-        self._call("epoch", report)
+        for sink in self._on_epoch:
+            try:
+                sink.epoch(report)
+            except Exception as exc:
+                self._drop(sink, "epoch", exc)
 
     def alarm(self, event: AlarmEvent) -> None:
         self._call("alarm", event)
