@@ -237,7 +237,7 @@ class AdaptiveFeatures(_Section):
     kink_isolation: bool = True  # an aux-baro drift pinned on whichever bent against the INS (monitor/kink.py)
     doppler_check: bool = True  # GNSS altitude against its own Doppler velocity (monitor/doppler.py)
     ins_doppler_check: bool = True  # the INS's velocity change against the Doppler's (monitor/doppler.py)
-    baro_doppler_check: bool = False  # the baro's change against the Doppler's integral (alerts only)
+    baro_doppler_check: bool = True  # the baro's change against the Doppler's integral (alerts only)
 
 
 class MonitorConfig(_Section):

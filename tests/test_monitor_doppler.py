@@ -135,8 +135,9 @@ def test_a_gnss_ramp_on_a_real_flight_is_pinned_on_the_gnss_by_its_own_doppler(o
 @pytest.mark.realdata
 @pytest.mark.slow
 def test_a_ramp_in_position_and_velocity_together_is_never_blamed_on_the_doppler():
-    """Spoofing moves both: the test passes, and its pass rules nothing out
-    (it must not clear the GNSS and let the baro be blamed)."""
+    """Spoofing moves both: the altitude/Doppler test passes, and its pass
+    rules nothing out (it must not clear the GNSS and let the baro be
+    blamed); the baro against the spoofed Doppler alerts it, unresolved."""
     onset_s, rate = 120.0, 0.5
     cfg = config_from_dict({})
     on_us, off_us = int(onset_s * 1e6), int((onset_s + 20.0) * 1e6)
@@ -148,8 +149,13 @@ def test_a_ramp_in_position_and_velocity_together_is_never_blamed_on_the_doppler
                                     vel_up_mps=s.vel_up_mps + rate)
         samples.append(s)
     events = _run(samples, cfg)
-    # while it lasts (its end is a position-only step back, which the test does see)
-    assert not any("Doppler" in ev.reason for ev in events if onset_s <= ev.t_s < onset_s + 20.0)
+    during = [ev for ev in events if onset_s <= ev.t_s < onset_s + 20.0]
+    # the altitude agrees with its own velocity while it lasts (its end is a
+    # position-only step back, which that test does see)
+    assert not any("against its own Doppler" in ev.reason for ev in during)
+    # the baro against the (spoofed) Doppler alerts it, and cannot say which: held, not pinned
+    assert any(ev.source == "gnss" and ev.state == "caution" and "cannot isolate" in ev.reason
+               and "against the GNSS Doppler" in ev.reason for ev in during)
     # the baro is never excluded for the GNSS's fault
     assert not any(ev.source == "baro_ins" and ev.state == "alarm" and onset_s <= ev.t_s <= onset_s + 22.0
                    for ev in events)

@@ -702,7 +702,13 @@ class HypothesisLogic:
         if not q:
             return None
         h = float(self.bank.x[BARO, 0])
-        margin = m.range_envelope_margin_m + self.k_cmp * math.sqrt(max(self.bank.P[BARO, 0, 0], 0.0))
+        # the height's uncertainty apart from the baro's bias against the datum:
+        # the rangefinder's ground is where the vehicle stood, and what the
+        # GNSS's slow error (where it is modelled) and the datum add is common
+        # to both (it had kept a dead rangefinder at 2.7 m unseen)
+        P = self.bank.P[BARO]
+        var_h = P[0, 0] - (P[0, 2] * P[0, 2] / P[2, 2] if P[2, 2] > 0 else 0.0)
+        margin = m.range_envelope_margin_m + self.k_cmp * math.sqrt(max(var_h, 0.0))
         bad = []
         for _, kind, v, lo, hi in q:
             if kind == "stuck":
