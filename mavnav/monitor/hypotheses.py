@@ -689,6 +689,17 @@ class HypothesisLogic:
         # a pass rules nothing out: one GNSS sample's sigma is too coarse to vouch for the rangefinder
         return Verdict("raw GNSS-rangefinder", "pass", implicates, frozenset(), abs(mean), thr)
 
+    def _envelope_margin(self) -> float:
+        """How far inside the range the baro+INS channel must put the vehicle:
+        the margin plus k sigma of its height apart from the baro's bias
+        against the datum (the rangefinder's ground is where the vehicle
+        stood; the datum's uncertainty, and the GNSS's slow error where it is
+        modelled, are common to both: counted, they kept a dead rangefinder at
+        2.7 m unseen)."""
+        P = self.bank.P[BARO]
+        var_h = P[0, 0] - (P[0, 2] * P[0, 2] / P[2, 2] if P[2, 2] > 0 else 0.0)
+        return self.m.range_envelope_margin_m + self.k_cmp * math.sqrt(max(var_h, 0.0))
+
     def _envelope_verdict(self, t: int) -> Optional[Verdict]:
         """Readings refused at the edge of the range (or frozen) while the
         vehicle, by the baro+INS channel, is well inside it."""
@@ -702,13 +713,7 @@ class HypothesisLogic:
         if not q:
             return None
         h = float(self.bank.x[BARO, 0])
-        # the height's uncertainty apart from the baro's bias against the datum:
-        # the rangefinder's ground is where the vehicle stood, and what the
-        # GNSS's slow error (where it is modelled) and the datum add is common
-        # to both (it had kept a dead rangefinder at 2.7 m unseen)
-        P = self.bank.P[BARO]
-        var_h = P[0, 0] - (P[0, 2] * P[0, 2] / P[2, 2] if P[2, 2] > 0 else 0.0)
-        margin = m.range_envelope_margin_m + self.k_cmp * math.sqrt(max(var_h, 0.0))
+        margin = self._envelope_margin()
         bad = []
         for _, kind, v, lo, hi in q:
             if kind == "stuck":
