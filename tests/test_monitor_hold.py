@@ -8,6 +8,8 @@ isolate the shift, by design."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -52,18 +54,11 @@ def test_a_held_shift_is_released_once_the_restarted_test_runs_clean(seed):
 def _vibrating_flight_with_a_baro_step():
     """IMU at 25 Hz vibrating well beyond the filters' INS model (as the
     real telemetry-rate IMUs do), a 4 m baro step for 20 s, then a clean baro."""
-    import dataclasses as _dc
-
-    from mavnav.pipeline import run as _run
-    from tests.support.faults import apply_fault as _apply
-    from tests.support.monitor import SENSORS, T0_US, cfg_for, hover
-    from tests.support.synthetic import Schedule, paper_flight
-
-    truth_sensors = _dc.replace(SENSORS, sigma_a_mps2=3.0, alpha_a_per_s=200.0)
+    truth_sensors = dataclasses.replace(SENSORS, sigma_a_mps2=3.0, alpha_a_per_s=200.0)
     flight = paper_flight(seed=3, sensors=truth_sensors, accel=hover, h0_m=10.0, t0_us=T0_US,
                           schedule=Schedule(duration_s=90.0, imu_dt_s=0.04, baro_every=3, gnss_every=5, rng_every=2))
-    samples = _apply(flight.samples, "baro", "step", 20.0, 20.0, 4.0, t0_us=T0_US)
-    return _run(samples, cfg_for(), []).alarms
+    samples = apply_fault(flight.samples, "baro", "step", 20.0, 20.0, 4.0, t0_us=T0_US)
+    return run(samples, cfg_for(), []).alarms
 
 
 @pytest.mark.simulation

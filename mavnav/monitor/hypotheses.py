@@ -603,9 +603,8 @@ class HypothesisLogic:
         res = self._ins_residual()
         if res is None:
             return None
-        e, thr, D = res
+        e, sigma, thr, D = res
         sc = self.scale["ins"]
-        sigma = thr / (self.k_cmp * sc.factor)
         stat = abs(e)
         if stat <= m.suspect_frac * thr:
             sc.push(t, e / sigma)  # frozen while the test leans towards a fault
@@ -1084,7 +1083,7 @@ class HypothesisLogic:
         return self.trackers["baro_ins"].set("nominal", t, f"readmitted after {self.m.readmit_s:g} s consistent")
 
     def _ins_residual(self) -> Optional[tuple]:
-        """The baro/INS statistic (m), its threshold (m) and its window (s),
+        """The baro/INS statistic (m), its sigma and threshold (m) and its window (s),
         with the noise the test itself uses: the INS model's, the measured IMU
         scatter beyond it, and the measured scale."""
         model = self.bank.model
@@ -1096,14 +1095,14 @@ class HypothesisLogic:
         if res is None:
             return None
         e, sigma, D = res
-        return e, self.k_cmp * sigma * self.scale["ins"].factor, D
+        return e, sigma, self.k_cmp * sigma * self.scale["ins"].factor, D
 
     def _ins_verdict_quiet(self, t: int) -> bool:
         """Readmission: the baro agrees with the INS by the test's own noise
         model (a stricter one than the test that excluded it is a latch: on
         telemetry-rate IMUs the model alone never passed)."""
         res = self._ins_residual()
-        return res is not None and abs(res[0]) <= res[1]
+        return res is not None and abs(res[0]) <= res[2]
 
     # ------------------------------------------------------------------ feedback
 
