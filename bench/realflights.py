@@ -392,6 +392,8 @@ def report(groups: Dict[str, List[Path]], results: List[dict], wall: float, args
         tot["alarms"] += a["alarm_events"]
         for s in SENSOR_SOURCES:
             tot[f"caution_{s}"] += a["caution_share"].get(s, 0.0) * a["duration_s"]
+        for k, v in st.get("overall", {}).items():
+            tot[f"overall_{k}"] += v * a["duration_s"]
         if a["rms_m"] is not None:
             tot["sq"] += a["rms_m"] ** 2 * a["duration_s"]
             tot["sq_t"] += a["duration_s"]
@@ -410,6 +412,9 @@ def report(groups: Dict[str, List[Path]], results: List[dict], wall: float, args
       f"alarm or unresolved failure) {held_n} ({held_n / hours if hours else 0:.1f}/h, "
       f"{100 * held_s / (hours * 3600) if hours else 0:.2f} % of the time); time in caution: "
       + ", ".join(f"{s} {100 * tot[f'caution_{s}'] / (hours * 3600) if hours else 0:.1f} %" for s in SENSOR_SOURCES)
+      + "; overall state " + "/".join(f"{100 * tot[f'overall_{k}'] / (hours * 3600) if hours else 0:.1f}"
+                                      for k in ("nominal", "caution", "unavailable", "alarm"))
+      + " % nominal/caution/unavailable/alarm"
       + f"; fused vs autopilot RMS (time-weighted) "
       f"{math.sqrt(tot['sq'] / tot['sq_t']) if tot['sq_t'] else float('nan'):.2f} m.")
     p("")
