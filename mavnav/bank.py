@@ -30,7 +30,7 @@ from typing import Optional
 
 import numpy as np
 
-from .channel import (AUX_GB, CHANNELS, GB, N_STATES, EpochInputs, Model, _check_finite,
+from .channel import (AUX_GB, CHANNELS, DH, GB, N_STATES, EpochInputs, Model, _check_finite,
                       gnss_gauss_markov, initial_state)
 from .jit import njit
 
@@ -350,10 +350,19 @@ class ChannelBank:
     def started(self) -> bool:
         return self.t_us is not None
 
-    def start(self, t_us: int, baro_m: float) -> None:
-        """Initialise every channel from the same prior: their errors start identical."""
+    def start(self, t_us: int, baro_m: float, baro_bias_m2: Optional[float] = None) -> None:
+        """Initialise every channel from the same prior: their errors start identical.
+        ``baro_bias_m2`` replaces the prior variance of the baro bias ``dH`` for
+        this start only (a reference taken at the datum ties it closer); a
+        channel re-initialised later in the flight takes the model's prior."""
+        model = self.model
+        if baro_bias_m2 is not None:
+            p0 = list(model.p0_diag)
+            p0[DH] = baro_bias_m2
+            self.model = dataclasses.replace(model, p0_diag=tuple(p0))
         for c in range(N_CH):
             self.reinit(c, t_us, baro_m)
+        self.model = model
         self.Pc[:] = self.P[0]
         self.t_us = t_us
 

@@ -97,6 +97,11 @@ class InitialCovariance(_Section):
     # 2 m: the baro reference is taken against the autopilot's height at start,
     # so the bias is small by construction (625 m^2 kept sigma at 25 m for whole flights)
     baro_bias_m2: float = Field(4.0, gt=0)
+    # The same when the baro reference was taken at the datum (ReferenceSet.at_datum):
+    # the mean of ~2 s of baro samples on the ground, so its error is the baro's
+    # own noise over that window (white 0.1-0.45 m and u 0.2 m, correlation 2 s:
+    # about 0.2 m); 0.3 m keeps a margin. Adaptive mode only; paper mode keeps P0.
+    baro_bias_at_datum_m2: float = Field(0.09, gt=0)
     acc_bias_m2ps4: float = Field(0.01, gt=0)
 
 
@@ -167,6 +172,12 @@ class ReferenceConfig(_Section):
     # above) before falling back to the start-up mean. Bounds the memory held
     # while waiting.
     home_wait_s: float = Field(30.0, gt=0)
+    # A baro reference taken while the autopilot's height above its reference
+    # point is within this is taken at the datum (on the ground at home): it
+    # ties the baro to the datum within its noise (ReferenceSet.at_datum,
+    # filter.p0.baro_bias_at_datum_m2). Beyond it (a log or link joined in
+    # flight) the tie is only as good as the autopilot's height then.
+    at_datum_max_m: float = Field(1.0, ge=0)
 
     @model_validator(mode="after")
     def _value_with_config(self) -> "ReferenceConfig":

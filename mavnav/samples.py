@@ -112,6 +112,11 @@ class ReferenceSet:
     # (alt - relative_alt); ekf_origin: GPS_GLOBAL_ORIGIN with LOCAL_POSITION_NED; startup:
     # the first samples' mean (nothing from the autopilot in time)
     origin: Literal["config", "home", "autopilot_home", "ekf_origin", "startup"]
+    # The vehicle was at the reference point when a baro reference was taken
+    # (the autopilot's height above it within ``at_datum_max_m``, or an onboard
+    # log's start on the ground): the reference ties the baro to the datum
+    # within the baro's own noise. False: taken in flight, or not known.
+    at_datum: bool = False
 
 
 @dataclass(frozen=True, slots=True)

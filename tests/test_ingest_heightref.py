@@ -73,3 +73,36 @@ def test_the_baro_reference_from_the_autopilots_height_above_home():
     sets = [x for x in out if type(x) is ReferenceSet]
     assert sets and sets[0].origin == "autopilot_home" and sets[0].value == pytest.approx(p_home, rel=1e-9)
     assert all(b.height_ref_m == pytest.approx(10.0, abs=1e-6) for b in out if type(b) is BaroHeight)
+
+
+def _baro_reference_above_home(rel_m: float, **ingest) -> ReferenceSet:
+    r = refs(**ingest)
+    p_home = 101_000.0
+    p_meas = pressure_at_height_pa(rel_m, p_home)
+    for k in range(15):
+        t = 1_000_000 + k * 100_000
+        r.autopilot_home(t, 100.0 + rel_m, 100.0, rel_m, 0.0)
+        sets = [x for x in r.pressure(BaroItem(t, 10.0 + k * 0.1, 0, p_meas)) if type(x) is ReferenceSet]
+        if sets:
+            return sets[0]
+    raise AssertionError("no baro reference released")
+
+
+def test_a_baro_reference_taken_on_the_ground_at_home_is_at_the_datum():
+    assert _baro_reference_above_home(0.3).at_datum is True
+    # in flight the tie is only as good as the autopilot's height then
+    assert _baro_reference_above_home(10.0).at_datum is False
+    # the threshold is the configured one
+    assert _baro_reference_above_home(0.3, baro_reference={"at_datum_max_m": 0.1}).at_datum is False
+
+
+def test_a_startup_or_configured_baro_reference_is_not_at_the_datum():
+    r = refs(baro_reference={"source": "config", "value": P0})
+    [ref] = [x for x in r.pressure(BaroItem(1_000_000, 10.0, 0, P0)) if type(x) is ReferenceSet]
+    assert ref.at_datum is False
+    r = refs(baro_reference={"source": "startup"})
+    out = []
+    for k in range(40):
+        out += r.pressure(BaroItem(1_000_000 + k * 100_000, 10.0 + k * 0.1, 0, P0))
+    [ref] = [x for x in out if type(x) is ReferenceSet]
+    assert ref.origin == "startup" and ref.at_datum is False  # a tlog may start in flight

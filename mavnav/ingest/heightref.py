@@ -118,6 +118,7 @@ class HeightReferences:
         self._wait_said: set = set()
         self.geoid_sep_m: Optional[float] = None  # GNSS: ellipsoid height - MSL altitude
         self.ekf_origin_msl_m: Optional[float] = None
+        self._baro_tied = False  # the baro reference being released was taken at the datum
 
     # ------------------------------------------------------------------ entry points
 
@@ -205,6 +206,7 @@ class HeightReferences:
         origin, rel_kind = a.origin, a.rel_kind
         win = min(self.baro.window_us, ANCHOR_WINDOW_US)
         vals = []
+        rel_max = 0.0
         t0 = b0 = None
         complete = final
         for t_us, _r, boot, p in held:  # BaroItem
@@ -216,9 +218,13 @@ class HeightReferences:
                 continue
             if t0 is None:
                 t0, b0 = t_us, boot
+            rel_max = max(rel_max, abs(rel))
             vals.append(p / pressure_at_height_pa(rel, 1.0))  # p was measured rel above the point
         if vals:
-            return (sum(vals) / len(vals), origin) if complete else None
+            if not complete:
+                return None
+            self._baro_tied = rel_max <= self.cfg.baro_reference.at_datum_max_m
+            return sum(vals) / len(vals), origin
         if origin == "home" and self._home_pos is not None:
             # HOME_POSITION and no height above it: home is where the vehicle was when it was set
             v = self._baro_at_home(held, final)
@@ -236,6 +242,7 @@ class HeightReferences:
             return None  # a GLOBAL_POSITION_INT may still come
         before = [it for it in held if it.boot == bh and th - w <= it.t_us <= th]
         if before:
+            self._baro_tied = True  # the pressure where home was set, as it was set
             return _mean_pressure(before)
         if not after:
             return None
@@ -350,7 +357,8 @@ class HeightReferences:
         if origin is not None:
             first = items[0] if items else None
             alt = self.anchor.alt_msl_m if origin in ANCHORED and self.anchor is not None else None
-            out.append(self._reference_set("baro", p_ref, alt, origin, first))
+            out.append(self._reference_set("baro", p_ref, alt, origin, first, at_datum=self._baro_tied))
+            self._baro_tied = False
         inst = self.cfg.baro_instance
         for t_us, recv_s, boot, p_pa in items:
             h = height_from_pressure_m(p_pa, p_ref)
@@ -369,14 +377,14 @@ class HeightReferences:
             out.append(GNSS_FIXED)
         return out
 
-    def _reference_set(self, kind, value, alt_msl, origin, item) -> ReferenceSet:
+    def _reference_set(self, kind, value, alt_msl, origin, item, at_datum: bool = False) -> ReferenceSet:
         if item:
             t_us, recv_s, boot = item.t_us, item.recv_s, item.boot
         else:  # fixed before any sample needed it (from the autopilot's home)
             t_us = self.clock.last_t_us if self.clock.last_t_us is not None else 0
             recv_s, boot = (self._last_recv() or 0.0), self.clock.boot
         return ReferenceSet(t_us=t_us, recv_s=recv_s, boot=boot, kind=kind, value=value, alt_ref_msl_m=alt_msl,
-                            origin=origin)
+                            origin=origin, at_datum=at_datum)
 
 
 def _item_t(item):

@@ -28,6 +28,7 @@ from ..samples import (
     LinkRecovered,
     RangeHeight,
     Reboot,
+    ReferenceSet,
     Rejected,
     SpecificForceUp,
 )
@@ -95,6 +96,7 @@ class Monitor:
         self._pending: list[AlarmEvent] = []
         self._last_t_us: Optional[int] = None
         self._rates_checked_us: Optional[int] = None
+        self._baro_at_datum = False  # this boot's baro reference was taken at the datum
 
     # ------------------------------------------------------------------ fold
 
@@ -120,6 +122,9 @@ class Monitor:
         elif isinstance(s, Rejected):
             if s.t_us is not None and s.sensor == "range":
                 self.logic.on_range_refused(s)
+        elif isinstance(s, ReferenceSet):
+            if s.kind == "baro":
+                self._baro_at_datum = s.at_datum
         elif isinstance(s, LinkLost):
             self._link_lost = True
             self._input_event("unavailable", f"link lost ({s.silent_s:.1f} s silent)")
@@ -129,7 +134,7 @@ class Monitor:
         out = []
         for ep in self.builder.push(s):
             if isinstance(ep, EpochStart):
-                self.bank.start(ep.t_us, ep.baro_m)
+                self.bank.start(ep.t_us, ep.baro_m, self._start_baro_bias_m2())
                 self.logic.start(ep.t_us, self.boot)
                 if self.input is None:
                     self.input = SourceTracker("input", ep.t_us, self.boot)
@@ -137,6 +142,13 @@ class Monitor:
                 continue
             out.append(self._epoch(ep))
         return out
+
+    def _start_baro_bias_m2(self) -> Optional[float]:
+        """The baro bias prior of a start on a reference taken at the datum
+        (adaptive mode; paper mode keeps the paper's P0)."""
+        if self._baro_at_datum and self.mcfg.mode != "paper":
+            return self.cfg.filter.p0.baro_bias_at_datum_m2
+        return None
 
     def _on_reboot(self, s: Reboot) -> None:
         # Close the previous boot's alarms honestly: everything restarts.

@@ -37,6 +37,7 @@ An onboard log is one boot: no reboots, no link.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 from typing import Iterator, List, Optional, Union
@@ -261,6 +262,21 @@ class _Builder:
         vel = a.vel_up_mps if a.vel_up_mps is not None else np.full(a.t_us.size, np.nan)
         self.cols.append((a.t_us, _AP, h, vel))
 
+    def _tie_baro_reference(self) -> None:
+        """Mark a start-up baro reference as taken at the datum when the
+        autopilot's height above its reference point stays within
+        ``at_datum_max_m`` over the reference's window (the log starts on the
+        ground at home). Without the autopilot's height it is not known."""
+        rc = self.cfg.baro_reference
+        ap = next((c for c in self.cols if c[1] == _AP), None)
+        for k, r in enumerate(self.refs):
+            if r.kind != "baro" or r.origin != "startup" or ap is None:
+                continue
+            t, h = ap[0], ap[2]
+            win = (t >= r.t_us) & (t <= r.t_us + rc.startup_window_s * 1e6)
+            if win.any() and bool(np.all(np.abs(h[win]) <= rc.at_datum_max_m)):
+                self.refs[k] = dataclasses.replace(r, at_datum=True)
+
     # ------------------------------------------------------------------ merge
 
     def samples(self) -> Iterator[object]:
@@ -313,6 +329,7 @@ class _Builder:
             ref = self._gnss()
             self._range(baro)
         self._autopilot(ref)
+        self._tie_baro_reference()
         st.messages = dict(sorted(rec.messages.items()))
         st.bytes_read = rec.bytes_read
         st.damage = list(rec.damage)
