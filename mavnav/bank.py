@@ -412,6 +412,35 @@ class ChannelBank:
             if j != c:
                 self._set_cross(c, j, self.P[src].copy() if j == src else self.cross(src, j).copy())
 
+    def rebase_baro_bias(self, c: int, baro_m: float, noise_var_m2: float) -> None:
+        """Channel ``c`` takes its baro bias from one baro sample and its own
+        height: ``dH = baro - H``, the error of which is ``-(e_H + n)``
+        (variance ``P_HH + noise_var_m2``; covariances, also with the other
+        channels, those of ``-e_H``). For a channel that ran without the baro
+        while the baro was at fault: the baro returns with whatever offset its
+        fault left, as a bias, and the channel keeps its height."""
+        P = self.P[c]
+        self.x[c, DH] = baro_m - self.x[c, 0]
+        row = -P[0, :].copy()
+        row[DH] = P[0, 0] + noise_var_m2
+        P[DH, :] = row
+        P[:, DH] = row
+        for p, (i, j) in enumerate(PAIRS):
+            if i == c:
+                self.Pc[p][DH, :] = -self.Pc[p][0, :]
+            elif j == c:
+                self.Pc[p][:, DH] = -self.Pc[p][:, 0]
+
+    def shift_baro_level(self, c: int, step_m: float, step_var_m2: float) -> None:
+        """Channel ``c``'s baro reading moved by ``step_m`` (measured with variance
+        ``step_var_m2``) that is the sensor's, not the vehicle's: the bias takes
+        it and the height gives it back (``H + dH`` unchanged); the uncertainty
+        of the measured step goes with it, along ``dH - H``."""
+        d = np.zeros(N_STATES)
+        d[0], d[DH] = -1.0, 1.0
+        self.x[c] += step_m * d
+        self.P[c] += step_var_m2 * np.outer(d, d)
+
     def predicted_baro(self, c: int, ep: EpochInputs) -> tuple[float, float]:
         """Innovation and variance the differenced baro row would have in channel
         ``c`` at ``ep`` (NaN if the channel has no previous baro sample)."""

@@ -163,6 +163,10 @@ class HypothesisLogic:
         self.offset_scale = ResidualScale(m.residual_scale_tau_s, 0.0, math.inf, max_phi=0.0, prior_m2=0.0)
         self.baro_judged: Optional[tuple] = None  # this epoch's baro row: (r, sd, rejected)
         self.jump_confirmed: Optional[tuple] = None  # (t, cum_m, sigma)
+        # every confirmed baro step: (t opened, size m, its sd m), for the level
+        # a baro readmitted with no aux channel to rebase on comes back at
+        self.baro_steps: deque = deque(maxlen=32)
+        self.baro_excluded_us: Optional[int] = None
         # ramp onsets against the INS: the series, and each one's measured kink scatter
         keys = ("gnss-baro", "gnss-ins", "rangefinder-baro", "rangefinder-ins", "baro-ins")
         self.kink = {k: KinkSeries(m.kink_window_s) for k in keys}
@@ -500,6 +504,7 @@ class HypothesisLogic:
         floor = math.sqrt(self.baro_gate * max(self.offset_scale.m2, 0.0))
         if j[3] * j[1] > 0 and abs(j[3]) >= max(m.baro_jump_stay_frac * abs(j[1]), floor):
             self.jump_confirmed = (t, j[3], abs(j[1]) / j[2])
+            self.baro_steps.append((j[0], j[3], j[2]))
         self.jump = None
 
     def _carried(self, samples, t: int) -> float:
@@ -989,6 +994,7 @@ class HypothesisLogic:
         self.excluded.add(name)
         self.consistent_since[name] = None
         if name == "baro_ins":
+            self.baro_excluded_us = t
             # a faulty baro is taken out of every aux channel, not only the fusion
             self.bank.baro_on[GNSS] = self.bank.baro_on[RNG] = False
             # what the aux channels' sequential tests summed while their channel
@@ -1070,6 +1076,7 @@ class HypothesisLogic:
             return None
         self.excluded.discard("baro_ins")
         self.rejections["baro_ins"].clear()
+        self._rebase_baro(t, aux=not self.ins_excluded)
         bank.baro_on[:] = True  # differencing restarts in the aux channels
         # the aux channels' sequential tests summed innovations their channel made
         # while it rested on the faulty source: that evidence is spent
@@ -1081,6 +1088,36 @@ class HypothesisLogic:
                 self._reinit_aux(c, name, t, math.sqrt(self.sensor_var_floor[c]))
         self.ins_excluded = False
         return self.trackers["baro_ins"].set("nominal", t, f"readmitted after {self.m.readmit_s:g} s consistent")
+
+    def _rebase_baro(self, t: int, aux: bool) -> None:
+        """The baro is back after a fault of its own, at a level that need not
+        be its level before (a step stays, and passes every windowed test once
+        it is past). Each aux channel that ran without it takes the baro's bias
+        from this sample and its own height, and the baro+INS channel restarts
+        from the surest of them: the output keeps the height the aux sensors
+        held, and the baro brings back its changes, not its offset."""
+        bank = self.bank
+        noise = bank.model.sigma_bb_m ** 2 + self.baro_white_var
+        avail = self._available(t)
+        best = None
+        for c, name in AUX:
+            if not aux or name in self.excluded or not avail[c] or bank.baro_on[c]:
+                continue  # (with the INS at fault the aux channels start again instead)
+            bank.rebase_baro_bias(c, self.last_baro_m, noise)
+            if best is None or bank.P[c, 0, 0] < bank.P[best, 0, 0]:
+                best = c
+        if best is not None:
+            bank.reinit_from(BARO, best)
+            bank.baro_prev[BARO] = math.nan  # its differencing restarts with the aux channels'
+        else:
+            # nothing held the height without the baro: the baro+INS channel
+            # followed the baro, so its level moves back by the steps the baro
+            # made against the INS while out (a step and its return cancel)
+            since = (self.baro_excluded_us or t) - int(1e6 * (self.m.baro_jump_confirm_s + 1.0))
+            steps = [(size, sd) for t0, size, sd in self.baro_steps if t0 >= since]
+            if steps:
+                bank.shift_baro_level(BARO, sum(sz for sz, _ in steps), sum(sd * sd for _, sd in steps))
+        self.baro_steps.clear()
 
     def _ins_residual(self) -> Optional[tuple]:
         """The baro/INS statistic (m), its sigma and threshold (m) and its window (s),
