@@ -308,6 +308,12 @@ class MonitorConfig(_Section):
     # Integrity: vertical protection level k * sigma against the alert limit.
     alert_limit_m: float = Field(4.0, gt=0)
     integrity_risk: float = Field(1e-5, gt=0, lt=0.5)
+    # Height sensors (baro, GNSS, rangefinder) that must be in use beside the
+    # INS for integrity: with the baro alone, a slow baro error passes every
+    # test against the INS (0.5 m/s ramps on the real baro-only flights were
+    # seen only when they ended, 20 s later), so the monitoring is degraded,
+    # not nominal (adaptive mode).
+    min_height_sensors: int = Field(2, ge=1)
     profile: str = "small_drone"
     # --- fault hypotheses (mavnav/monitor/hypotheses.py) ---
     # Sequential test (two-sided CUSUM) of each sensor's normalised innovations:

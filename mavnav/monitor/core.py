@@ -15,7 +15,7 @@ import math
 from collections import Counter, deque
 from typing import Optional
 
-from ..bank import ChannelBank
+from ..bank import GNSS, RNG, ChannelBank
 from ..channel import EpochInputs, Model
 from ..config import Config
 from ..epochs import EpochBuilder, EpochStart
@@ -164,7 +164,13 @@ class Monitor:
 
     # ------------------------------------------------------------------ epoch
 
-    def _input_state(self, t_us: int) -> Optional[AlarmEvent]:
+    def _height_sensors(self, d) -> list:
+        """The height sensors the monitor has this epoch: the baro unless it is
+        out, the GNSS and the rangefinder while their channels are available."""
+        out = [] if d.sources["baro_ins"].state in ("alarm", "unavailable") else ["baro"]
+        return out + [n for n, c in (("GNSS", GNSS), ("rangefinder", RNG)) if d.available[c]]
+
+    def _input_state(self, t_us: int, d) -> Optional[AlarmEvent]:
         if self.input is None:
             self.input = SourceTracker("input", t_us, self.boot)
         if self._link_lost:
@@ -188,6 +194,11 @@ class Monitor:
             # slow inputs make monitoring unavailable at the required time-to-alarm; they never make a sensor faulty
             return self.input.set("unavailable", t_us, "monitoring degraded, too slow for the %.1f s time-to-alarm: %s"
                                   % (m.time_to_alarm_s, ", ".join(slow)))
+        have = self._height_sensors(d)
+        if self.mcfg.mode != "paper" and len(have) < m.min_height_sensors:
+            return self.input.set("unavailable", t_us, "monitoring degraded: %s and the INS alone; a slow error "
+                                  "in a single height sensor cannot be detected within the time-to-alarm"
+                                  % (" and ".join(have) or "no height sensor"))
         return self.input.set("nominal", t_us, "rates support the time-to-alarm")
 
     def _epoch(self, ep: EpochInputs) -> tuple[EpochReport, list[AlarmEvent]]:
@@ -198,7 +209,7 @@ class Monitor:
         d = self.logic.post(ep, ep_used, step)
         events = self._pending + d.events
         self._pending = []
-        ev = self._input_state(t_us)
+        ev = self._input_state(t_us, d)
         if ev is not None:
             events.append(ev)
         bank = self.bank
