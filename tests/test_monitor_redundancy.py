@@ -1,0 +1,54 @@
+"""With the baro the only height sensor beside the INS, monitoring is degraded
+(a slow baro error passes every test against the INS), and says so."""
+
+from __future__ import annotations
+
+import pytest
+
+from mavnav.config import config_from_dict
+from mavnav.ingest import open_log
+from mavnav.pipeline import run
+from mavnav.sinks.base import Sink
+from tests.support.paths import SHARED_FLIGHTLOGS
+
+QUAD = SHARED_FLIGHTLOGS / "aut_quadrotor_local.ulg"  # PX4 1.16, baro and IMU at 5 / 219 Hz, no GNSS fix
+DKLA = SHARED_FLIGHTLOGS / "dkla_log171.bin"  # ArduCopter 3.3, baro and GNSS
+
+pytestmark = [pytest.mark.realdata, pytest.mark.skipif(not QUAD.exists(), reason="no shared flight logs")]
+
+
+class _Overall(Sink):
+    def __init__(self):
+        self.states = []
+        self.reasons = set()
+
+    def epoch(self, r):
+        self.states.append(r.overall)
+        self.reasons.add(r.sources["input"].reason)
+
+
+def _fly(path, **monitor):
+    cfg = config_from_dict({"monitor": monitor})
+    sink = _Overall()
+    run(open_log(str(path), cfg.ingest), cfg, [sink])
+    return sink
+
+
+def _share(states, state):
+    return sum(s == state for s in states) / len(states)
+
+
+def test_the_baro_alone_makes_monitoring_degraded_and_says_why():
+    alone = _fly(QUAD)
+    assert _share(alone.states, "nominal") == 0.0
+    assert any("baro and the INS alone" in r for r in alone.reasons)
+    # the rule and nothing else: at one sensor the same flight is nominal
+    assert _share(_fly(QUAD, min_height_sensors=1).states, "nominal") > 0.9
+    # paper mode stays the paper's
+    assert not any("INS alone" in r for r in _fly(QUAD, mode="paper").reasons)
+
+
+@pytest.mark.slow
+def test_with_the_gnss_beside_the_baro_monitoring_is_not_degraded_by_it():
+    both = _fly(DKLA)
+    assert _share(both.states, "nominal") > 0.5
