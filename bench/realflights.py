@@ -283,6 +283,7 @@ def _part2(path: str, rates: dict, faults=FAULTS, contenders=CONTENDERS) -> tupl
     t_lo, t_hi = _span(base)
     rng_t = np.array([s.t_us * 1e-6 for s in base if isinstance(s, RangeHeight) and s.boot == 0])
     clean = {m: _contender(m, base) for m in contenders}
+    clean_on = {m: [(ev.source, ev.t_s) for ev in alarm_onsets(clean[m]["alarms"])] for m in contenders}
     rows, skipped = [], []
     for name, spec, source in faults:
         if source == "rangefinder" and rates.get("rangefinder", 0.0) < MIN_RATE_HZ:
@@ -306,8 +307,12 @@ def _part2(path: str, rates: dict, faults=FAULTS, contenders=CONTENDERS) -> tupl
                 wrong = sorted({ev.source for ev in alarm_onsets(r["alarms"])
                                 if onset <= ev.t_s <= end + 2.0 and ev.source in SENSOR_SOURCES and ev.source != source})
                 alert = _alert_s(r, clean[m], onset, end, source, d)
+                # a wrong exclusion the unfaulted flight makes too (within 2 s) is the flight's, not the fault's
+                own = sorted({ev.source for ev in alarm_onsets(r["alarms"])
+                              if onset <= ev.t_s <= end + 2.0 and ev.source in wrong
+                              and not any(s_ == ev.source and abs(t_ - ev.t_s) <= 2.0 for s_, t_ in clean_on[m])})
                 row[m] = {"detected": d.detected, "tta_s": d.tta_s, "isolated": d.isolated, "alert_s": alert,
-                          "blamed": list(d.first_sources), "wrong": wrong,
+                          "blamed": list(d.first_sources), "wrong": wrong, "wrong_by_fault": own,
                           "hazard_s": _hazard_s(r, clean[m], onset, end)}
             rows.append(row)
     return rows, skipped
@@ -458,6 +463,12 @@ def report(groups: Dict[str, List[Path]], results: List[dict], wall: float, args
                 in_t = sum(a == a and a <= ALERT_TARGET_S.get(x["fault"], math.inf) for a, x in zip(al, rows))
                 cells.append(f"{det}/{len(rows)} / {fmt(med)} / {n_al} / {fmt(med_al)} / {in_t} / {iso} / {wrong} / {haz}")
             p(f"| {name} | {len(rows)} | " + " | ".join(cells) + " |")
+        p("")
+        applicable = [x for x in faulted if x["samples_changed"] > 0]
+        p(f"Runs whose fault changed any sample (the flight has the sensor): {len(applicable)} of {len(faulted)}. "
+          "Wrong exclusions the unfaulted flight does not make within 2 s (the fault's own): "
+          + ", ".join(f"{m} {sum(bool(x[m].get('wrong_by_fault', x[m]['wrong'])) for x in faulted)}"
+                      for m in CONTENDERS) + ".")
     return "\n".join(lines) + "\n"
 
 

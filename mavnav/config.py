@@ -368,6 +368,11 @@ class MonitorConfig(_Section):
     # (features.baro_doppler_check): the 99th percentile of |e| over 5 s on the
     # modern receivers here is 0.5-1.8 m.
     baro_doppler_sigma_m: float = Field(0.4, gt=0)
+    # Its own window: the baro's difference from the Doppler's integral hardly
+    # grows from 5 to 10 s on the real flights (99th percentile 0.8-2.8 m and
+    # 0.6-2.9 m on the modern receivers, bench/doppler_stats.py) while a ramp's
+    # doubles, so a 0.5 m/s baro ramp clears the threshold sooner over 10 s.
+    baro_doppler_window_s: float = Field(10.0, gt=0)
     # Rangefinder envelope: readings refused below its minimum (or above its
     # maximum) while the other sources put the vehicle more than margin inside
     # its range, for most of a window, are a rangefinder failure.

@@ -261,3 +261,26 @@ def test_a_receiver_with_a_doppler_velocity_has_its_slow_error_modelled():
     assert _logic_after_one_gnss_sample(0.3, doppler_check=False).model.gnss_gm_sigma_m == 0.0
     # once open, a second call changes nothing
     assert bank.open_gnss_error(s) is False
+
+
+@pytest.mark.unit
+def test_the_baro_doppler_test_has_its_own_longer_window():
+    """A 0.5 m/s baro ramp against a still Doppler: over the baro's 10 s window
+    the reading keeps growing after the GNSS altitude test's 5 s window has
+    levelled off at 2.5 m (the real baro-Doppler scatter hardly grows from 5 to
+    10 s: bench/doppler_stats.py)."""
+    from mavnav.bank import ChannelBank
+    from mavnav.channel import Model
+    from mavnav.monitor.hypotheses import HypothesisLogic
+
+    cfg = config_from_dict({})
+    m = cfg.monitor
+    assert m.baro_doppler_window_s > m.doppler_window_s
+    logic = HypothesisLogic(cfg, ChannelBank(Model.from_config(cfg)))
+    logic.start(0, 0)
+    assert logic.baro_doppler.window_us == int(m.baro_doppler_window_s * 1e6)
+    assert logic.doppler.window_us == int(m.doppler_window_s * 1e6)
+    t = np.arange(0.0, 30.0, 0.2)
+    ramp = np.where(t >= 10.0, 0.5 * (t - 10.0), 0.0)
+    e = dict(zip(np.round(t, 1), _series(logic.baro_doppler, t, ramp, np.zeros_like(t))))
+    assert e[18.0] == pytest.approx(4.0, abs=1e-9)  # 8 s of ramp, all inside the window

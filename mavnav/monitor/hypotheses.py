@@ -179,7 +179,7 @@ class HypothesisLogic:
         self.scale["doppler"] = ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0)
         self.doppler_ex = Exceedance()
         # the baro against the same Doppler velocity (alerts, never clears)
-        self.baro_doppler = DopplerCheck(m.doppler_window_s, m.doppler_max_gap_s)
+        self.baro_doppler = DopplerCheck(m.baro_doppler_window_s, m.doppler_max_gap_s)
         self.scale["baro_doppler"] = ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0)
         self.baro_doppler_ex = Exceedance()
         # the INS's velocity change against the Doppler's: the check, its scale,
@@ -410,7 +410,7 @@ class HypothesisLogic:
         thr = self.k_cmp * self.m.baro_doppler_sigma_m * self.scale["baro_doppler"].factor
         e = d.last_e_m
         txt = (f"baro moved {e:+.2f} m against the GNSS Doppler velocity over "
-               f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m)")
+               f"{self.m.baro_doppler_window_s:g} s (threshold {thr:.2f} m)")
         return self._graded("baro/Doppler", abs(e), thr, self.baro_doppler_ex, t, frozenset(("baro", "gnss")), txt)
 
     def _push_ins_doppler(self, ep: EpochInputs) -> None:
