@@ -114,6 +114,7 @@ from ..samples import (
     Rejected,
     SpecificForceUp,
 )
+from ..sensors import AUTOPILOT_STREAM, BARO_STREAM, GNSS_STREAM, IMU_STREAM, RANGE_STREAM
 from . import wire
 from .attitude import AttitudeInterpolator
 from .heightref import GNSS_FIXED, BaroItem, GnssItem, HeightReferences
@@ -134,7 +135,7 @@ MAX_SPECIFIC_FORCE_MPS2 = 50 * G0_MPS2  # beyond any airframe IMU range
 MAX_PRESSURE_PA = 2.0e7  # 200 bar: deeper than any ROV depth sensor reads
 HOME_UNSET_MM = 50  # GLOBAL_POSITION_INT alt - relative_alt below this: ArduPilot's home not yet set
 PRE_IMU_HOLD_US = 5_000_000  # at most this long do measurements wait for the first IMU sample of a boot
-GATED = frozenset(("baro", "gnss", "range"))
+GATED = frozenset((BARO_STREAM, GNSS_STREAM, RANGE_STREAM))
 WAIT_HEARTBEAT_S = 2.0  # live: no vehicle heartbeat this long after starting: say what is awaited
 WAIT_HEARTBEAT_REPEAT_S = 10.0  # and again this often
 OTHER_FRAMES_BEFORE_SAYING = 20  # another system without a heartbeat is said after this many frames
@@ -604,7 +605,7 @@ class Normaliser:
 
     def _imu_selected(self, item: ImuItem) -> None:
         self.stats.imu_source = self.imu_sel.chosen
-        if not self._admit("imu", item.t_us, item.recv_s, item.boot):
+        if not self._admit(IMU_STREAM, item.t_us, item.recv_s, item.boot):
             return
         self.att.pending.append((item.t_us, item))
         self._resolve_attitude()
@@ -627,7 +628,7 @@ class Normaliser:
                 self._reject(recv_s, "no_attitude", f"{name}: no attitude within {self.cfg.attitude_max_age_s} s", t_us, boot)
                 continue
             f_up = f_up_from_body(fb, down_row_from_quat(q))
-            self._yield("imu", SpecificForceUp(t_us, recv_s, boot, f_up, name))
+            self._yield(IMU_STREAM, SpecificForceUp(t_us, recv_s, boot, f_up, name))
 
     # ------------------------------------------------------------------ barometer
 
@@ -725,20 +726,20 @@ class Normaliser:
             lo_m = f["min_distance"] / 100.0
             hi_m = f["max_distance"] / 100.0 if f["max_distance"] > 0 else self.cfg.rangefinder_max_m
             if f["signal_quality"] == DISTANCE_SENSOR_QUALITY_INVALID:
-                self._reject(recv_s, "invalid_quality", f"{name} signal_quality 1 (invalid)", t_us, boot, sensor="range")
+                self._reject(recv_s, "invalid_quality", f"{name} signal_quality 1 (invalid)", t_us, boot, sensor=RANGE_STREAM)
                 return
         else:
             raw = f["distance"]
             range_m = raw  # m
             lo_m, hi_m = self.cfg.rangefinder_min_m, self.cfg.rangefinder_max_m
             if not _finite(range_m):
-                self._reject(recv_s, "nan", f"{name} with a non-finite distance", t_us, boot, sensor="range")
+                self._reject(recv_s, "nan", f"{name} with a non-finite distance", t_us, boot, sensor=RANGE_STREAM)
                 return
             if range_m < 0:
-                self._reject(recv_s, "impossible", f"{name} negative distance {range_m:.3g} m", t_us, boot, sensor="range")
+                self._reject(recv_s, "impossible", f"{name} negative distance {range_m:.3g} m", t_us, boot, sensor=RANGE_STREAM)
                 return
         if not lo_m <= range_m <= hi_m:
-            self._reject(recv_s, "out_of_range", f"{name} {range_m:.3f} m outside [{lo_m:g}, {hi_m:g}] m", t_us, boot, sensor="range",
+            self._reject(recv_s, "out_of_range", f"{name} {range_m:.3f} m outside [{lo_m:g}, {hi_m:g}] m", t_us, boot, sensor=RANGE_STREAM,
                          value_m=range_m, min_m=lo_m, max_m=hi_m)
             return
         other = self._range_last.get("RANGEFINDER" if name == "DISTANCE_SENSOR" else "DISTANCE_SENSOR")
@@ -747,23 +748,23 @@ class Normaliser:
             if abs(range_m - other.range_m) > tol:
                 self._reject(recv_s, "disagrees", f"{name} {range_m:.2f} m but the same rangefinder's "
                              f"{'RANGEFINDER' if name == 'DISTANCE_SENSOR' else 'DISTANCE_SENSOR'} {other.range_m:.2f} m",
-                             t_us, boot, sensor="range", value_m=range_m, min_m=lo_m, max_m=hi_m)
+                             t_us, boot, sensor=RANGE_STREAM, value_m=range_m, min_m=lo_m, max_m=hi_m)
                 return
         if self._stuck(raw, t_us, boot):
-            self._reject(recv_s, "stuck", f"{name} reads {range_m:.3f} m for {self.cfg.rangefinder_stuck_s} s while the baro moved", t_us, boot, sensor="range",
+            self._reject(recv_s, "stuck", f"{name} reads {range_m:.3f} m for {self.cfg.rangefinder_stuck_s} s while the baro moved", t_us, boot, sensor=RANGE_STREAM,
                          value_m=range_m, min_m=lo_m, max_m=hi_m)
             return
-        if not self._admit("range", t_us, recv_s, boot):
+        if not self._admit(RANGE_STREAM, t_us, recv_s, boot):
             return
         q = self.att.latest(t_us)
         if q is None:
-            self._reject(recv_s, "no_attitude", f"{name}: no attitude for tilt correction", t_us, boot, sensor="range")
+            self._reject(recv_s, "no_attitude", f"{name}: no attitude for tilt correction", t_us, boot, sensor=RANGE_STREAM)
             return
         c = cos_tilt(down_row_from_quat(q))
         if c < self._cos_max_tilt:
-            self._reject(recv_s, "tilt", f"{name}: tilted {math.degrees(math.acos(max(-1.0, min(1.0, c)))):.0f} deg", t_us, boot, sensor="range")
+            self._reject(recv_s, "tilt", f"{name}: tilted {math.degrees(math.acos(max(-1.0, min(1.0, c)))):.0f} deg", t_us, boot, sensor=RANGE_STREAM)
             return
-        self._yield("range", RangeHeight(t_us, recv_s, boot, range_m * c, range_m, name, lo_m, hi_m))
+        self._yield(RANGE_STREAM, RangeHeight(t_us, recv_s, boot, range_m * c, range_m, name, lo_m, hi_m))
 
     def _stuck(self, raw, t_us, boot) -> bool:
         run = self._range_run
@@ -859,7 +860,7 @@ class Normaliser:
                     h = local_up + self.refs.ekf_origin_msl_m - ref_msl
             else:
                 h = local_up
-            self._guarded("autopilot", t_us, recv_s, boot, AutopilotHeight(t_us, recv_s, boot, h, src, vel_up))
+            self._guarded(AUTOPILOT_STREAM, t_us, recv_s, boot, AutopilotHeight(t_us, recv_s, boot, h, src, vel_up))
 
     # ------------------------------------------------------------------ output
 
@@ -881,7 +882,7 @@ class Normaliser:
         self.stats.samples[kind] += 1
         if kind not in GATED or (self._imu_out and not self._pre_imu):
             self._out.append(sample)
-            if kind == "imu":
+            if kind == IMU_STREAM:
                 self._imu_out = True  # what waited joins the output at the end of this frame (_merge_gate)
             return
         held = self._pre_imu
@@ -917,9 +918,9 @@ class Normaliser:
         for x in out:
             kind = type(x)
             if kind is BaroHeight:
-                self._guarded("baro", x.t_us, x.recv_s, x.boot, x)
+                self._guarded(BARO_STREAM, x.t_us, x.recv_s, x.boot, x)
             elif kind is GnssHeight:
-                self._guarded("gnss", x.t_us, x.recv_s, x.boot, x)
+                self._guarded(GNSS_STREAM, x.t_us, x.recv_s, x.boot, x)
             elif x is GNSS_FIXED:
                 self._ap_release(final=False)
             else:
