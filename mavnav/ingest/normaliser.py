@@ -95,7 +95,6 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Deque, List, NamedTuple, Optional, Sequence
 
-from ..atmosphere import height_from_pressure_m
 from ..config import IngestConfig
 from ..constants import G0_MPS2
 from ..frames import cos_tilt, down_row_from_quat, f_up_from_body, quat_from_euler
@@ -118,6 +117,7 @@ from ..sensors import AUTOPILOT_STREAM, BARO_STREAM, GNSS_STREAM, IMU_STREAM, RA
 from . import wire
 from .attitude import AttitudeInterpolator
 from .heightref import GNSS_FIXED, BaroItem, GnssItem, HeightReferences
+from .rangecheck import RangeChecks, Refusal
 from .timebase import SETTLED, ClockStepped, NewBoot, Placed, TimeBase
 from .stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
 from .streams import KindGuard, SourceSelector
@@ -129,7 +129,6 @@ MAV_AUTOPILOT_INVALID = 8
 MAV_TYPE_GCS = 6
 MAV_COMP_ID_AUTOPILOT1 = 1
 MAV_SENSOR_ROTATION_PITCH_270 = 25  # downward
-DISTANCE_SENSOR_QUALITY_INVALID = 1
 UINT32_MAX = 0xFFFFFFFF
 MAX_SPECIFIC_FORCE_MPS2 = 50 * G0_MPS2  # beyond any airframe IMU range
 MAX_PRESSURE_PA = 2.0e7  # 200 bar: deeper than any ROV depth sensor reads
@@ -188,13 +187,6 @@ class AutopilotItem(NamedTuple):
     vel_up: float
 
 
-class _RangeReading(NamedTuple):
-    """The latest reading of one rangefinder message, for the cross-check."""
-
-    recv_s: float
-    range_m: float
-
-
 class _Heartbeat(NamedTuple):
     type: int  # MAV_TYPE
     autopilot: int  # MAV_AUTOPILOT
@@ -207,18 +199,6 @@ class _OtherSystem:
     frames: int = 0
     heartbeat: Optional[_Heartbeat] = None
     said: bool = False
-
-
-@dataclass
-class _RangeRun:
-    """One raw rangefinder value repeated since ``t_start_us`` (boot ``boot``),
-    with the lowest and highest pressure seen meanwhile (the stuck test)."""
-
-    raw: object
-    t_start_us: int
-    p_min: Optional[float]
-    p_max: Optional[float]
-    boot: int
 
 
 _NOTHING: tuple = ()  # what a call that releases nothing returns
@@ -264,11 +244,7 @@ class Normaliser:
         self._ap_mode: Optional[str] = None
         self._gnss_wait_us = int(cfg.gnss_reference.home_wait_s * 1e6)
         self._cos_max_tilt = math.cos(math.radians(cfg.rangefinder_max_tilt_deg))
-        self._stuck_us = int(cfg.rangefinder_stuck_s * 1e6)
-        self._range_run: Optional[_RangeRun] = None
-        # the latest reading of each rangefinder message, for the cross-check, by message name
-        self._range_last: dict[str, _RangeReading] = {}
-        self._last_pressure_pa: Optional[float] = None
+        self.range_checks = RangeChecks(cfg)  # reading, cross-check, stuck (see .rangecheck)
         self._pressure_id = PRESSURE_IDS[cfg.baro_instance]
         self._decoders = {mid: wire.make_decoder(mid) for mid in WANTED}
         self._handlers = {
@@ -517,7 +493,7 @@ class Normaliser:
         self._settle_boot()  # what belongs to the old boot goes out before the Reboot event
         last, boot = self.time.new_boot(t_us, recv_s)
         self.att.reset()
-        self._range_run = None
+        self.range_checks.stuck.reset()
         self.refs.new_boot()
         self._imu_out = False
         self.stats.reboots += 1
@@ -643,11 +619,7 @@ class Normaliser:
         self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "pressure", p_pa))
 
     def _pressure_at(self, p_pa, t_us, recv_s) -> None:
-        self._last_pressure_pa = p_pa
-        run = self._range_run
-        if run is not None:
-            run.p_min = p_pa if run.p_min is None else min(run.p_min, p_pa)
-            run.p_max = p_pa if run.p_max is None else max(run.p_max, p_pa)
+        self.range_checks.stuck.pressure(p_pa)
         self._on_refs(self.refs.pressure(BaroItem(t_us, recv_s, self.clock.boot, p_pa)))
 
     # ------------------------------------------------------------------ GNSS
@@ -696,8 +668,7 @@ class Normaliser:
             return
         for it in self._noted(self.range_sel, "DISTANCE_SENSOR"):
             self._range_selected(it)
-        if f["signal_quality"] != DISTANCE_SENSOR_QUALITY_INVALID:
-            self._range_last["DISTANCE_SENSOR"] = _RangeReading(recv_s, f["current_distance"] / 100.0)
+        self.range_checks.cross.note("DISTANCE_SENSOR", f, recv_s)
         self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "distance_sensor", f))
 
     def _distance_sensor_at(self, f, t_us, recv_s) -> None:
@@ -706,8 +677,7 @@ class Normaliser:
             self._range_selected(it)
 
     def _rangefinder(self, f, recv_s, compid) -> None:
-        if _finite(f["distance"]):
-            self._range_last["RANGEFINDER"] = _RangeReading(recv_s, f["distance"])
+        self.range_checks.cross.note("RANGEFINDER", f, recv_s)
         self._on_time(self.time.untimed(recv_s, "rangefinder", f, "RANGEFINDER"))  # no time field: see clock.py
 
     def _rangefinder_at(self, f, t_us, recv_s) -> None:
@@ -720,39 +690,10 @@ class Normaliser:
     def _range_selected(self, item) -> None:
         t_us, recv_s, boot, name, f = item
         self.stats.range_source = self.range_sel.chosen
-        if name == "DISTANCE_SENSOR":
-            raw = f["current_distance"]
-            range_m = raw / 100.0  # cm
-            lo_m = f["min_distance"] / 100.0
-            hi_m = f["max_distance"] / 100.0 if f["max_distance"] > 0 else self.cfg.rangefinder_max_m
-            if f["signal_quality"] == DISTANCE_SENSOR_QUALITY_INVALID:
-                self._reject(recv_s, "invalid_quality", f"{name} signal_quality 1 (invalid)", t_us, boot, sensor=RANGE_STREAM)
-                return
-        else:
-            raw = f["distance"]
-            range_m = raw  # m
-            lo_m, hi_m = self.cfg.rangefinder_min_m, self.cfg.rangefinder_max_m
-            if not _finite(range_m):
-                self._reject(recv_s, "nan", f"{name} with a non-finite distance", t_us, boot, sensor=RANGE_STREAM)
-                return
-            if range_m < 0:
-                self._reject(recv_s, "impossible", f"{name} negative distance {range_m:.3g} m", t_us, boot, sensor=RANGE_STREAM)
-                return
-        if not lo_m <= range_m <= hi_m:
-            self._reject(recv_s, "out_of_range", f"{name} {range_m:.3f} m outside [{lo_m:g}, {hi_m:g}] m", t_us, boot, sensor=RANGE_STREAM,
-                         value_m=range_m, min_m=lo_m, max_m=hi_m)
-            return
-        other = self._range_last.get("RANGEFINDER" if name == "DISTANCE_SENSOR" else "DISTANCE_SENSOR")
-        if other is not None and abs(recv_s - other.recv_s) <= self.cfg.range_cross_max_age_s:
-            tol = max(self.cfg.range_cross_tol_m, self.cfg.range_cross_tol_frac * max(range_m, other.range_m))
-            if abs(range_m - other.range_m) > tol:
-                self._reject(recv_s, "disagrees", f"{name} {range_m:.2f} m but the same rangefinder's "
-                             f"{'RANGEFINDER' if name == 'DISTANCE_SENSOR' else 'DISTANCE_SENSOR'} {other.range_m:.2f} m",
-                             t_us, boot, sensor=RANGE_STREAM, value_m=range_m, min_m=lo_m, max_m=hi_m)
-                return
-        if self._stuck(raw, t_us, boot):
-            self._reject(recv_s, "stuck", f"{name} reads {range_m:.3f} m for {self.cfg.rangefinder_stuck_s} s while the baro moved", t_us, boot, sensor=RANGE_STREAM,
-                         value_m=range_m, min_m=lo_m, max_m=hi_m)
+        r = self.range_checks.check(name, f, recv_s, t_us, boot)
+        if type(r) is Refusal:
+            self._reject(recv_s, r.kind, r.detail, t_us, boot, sensor=RANGE_STREAM, value_m=r.value_m, min_m=r.min_m,
+                         max_m=r.max_m)
             return
         if not self._admit(RANGE_STREAM, t_us, recv_s, boot):
             return
@@ -764,18 +705,7 @@ class Normaliser:
         if c < self._cos_max_tilt:
             self._reject(recv_s, "tilt", f"{name}: tilted {math.degrees(math.acos(max(-1.0, min(1.0, c)))):.0f} deg", t_us, boot, sensor=RANGE_STREAM)
             return
-        self._yield(RANGE_STREAM, RangeHeight(t_us, recv_s, boot, range_m * c, range_m, name, lo_m, hi_m))
-
-    def _stuck(self, raw, t_us, boot) -> bool:
-        run = self._range_run
-        p = self._last_pressure_pa
-        if run is None or run.raw != raw or run.boot != boot or t_us < run.t_start_us:
-            self._range_run = _RangeRun(raw, t_us, p, p, boot)
-            return False
-        if t_us - run.t_start_us < self._stuck_us or run.p_min is None:
-            return False
-        moved_m = height_from_pressure_m(run.p_min, run.p_max)  # p_min above p_max
-        return moved_m >= self.cfg.rangefinder_stuck_min_move_m
+        self._yield(RANGE_STREAM, RangeHeight(t_us, recv_s, boot, r.range_m * c, r.range_m, name, r.lo_m, r.hi_m))
 
     # ------------------------------------------------------------------ autopilot's own height
 
