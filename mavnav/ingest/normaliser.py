@@ -11,7 +11,10 @@ attitude are released when it arrives; within each kind and boot ``t_us``
 strictly increases.
 
 Decisions the issue left open (see also the module docs of :mod:`.clock`,
-:mod:`.attitude`, :mod:`.references`, :mod:`.streams`):
+:mod:`.attitude`, :mod:`.references`, :mod:`.streams`). Stages of their own:
+the time base (:mod:`.timebase`), the height references (:mod:`.heightref`),
+the rangefinder's checks (:mod:`.rangecheck`), and the other systems on the
+link and what is said about them (:mod:`.systems`):
 
 * **Vehicle.** The first HEARTBEAT with ``autopilot != MAV_AUTOPILOT_INVALID``
   and ``type != MAV_TYPE_GCS`` selects the system (or the ``sysid`` given).
@@ -92,7 +95,6 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
 from typing import Deque, List, NamedTuple, Optional, Sequence
 
 from ..config import IngestConfig
@@ -121,12 +123,10 @@ from .rangecheck import RangeChecks, Refusal
 from .timebase import SETTLED, ClockStepped, NewBoot, Placed, TimeBase
 from .stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
 from .streams import KindGuard, SourceSelector
+from .systems import MAV_AUTOPILOT_ARDUPILOTMEGA, OtherSystems, describe_system, is_vehicle_heartbeat
 from .vehicle_class import is_height_input, not_applicable_reason, notice_text
 
 MILLI_G_MPS2 = G0_MPS2 / 1000.0
-MAV_AUTOPILOT_ARDUPILOTMEGA = 3
-MAV_AUTOPILOT_INVALID = 8
-MAV_TYPE_GCS = 6
 MAV_COMP_ID_AUTOPILOT1 = 1
 MAV_SENSOR_ROTATION_PITCH_270 = 25  # downward
 UINT32_MAX = 0xFFFFFFFF
@@ -135,9 +135,6 @@ MAX_PRESSURE_PA = 2.0e7  # 200 bar: deeper than any ROV depth sensor reads
 HOME_UNSET_MM = 50  # GLOBAL_POSITION_INT alt - relative_alt below this: ArduPilot's home not yet set
 PRE_IMU_HOLD_US = 5_000_000  # at most this long do measurements wait for the first IMU sample of a boot
 GATED = frozenset((BARO_STREAM, GNSS_STREAM, RANGE_STREAM))
-WAIT_HEARTBEAT_S = 2.0  # live: no vehicle heartbeat this long after starting: say what is awaited
-WAIT_HEARTBEAT_REPEAT_S = 10.0  # and again this often
-OTHER_FRAMES_BEFORE_SAYING = 20  # another system without a heartbeat is said after this many frames
 
 IMU_RANKING = ("HIGHRES_IMU", "RAW_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3")
 RANGE_RANKING = ("DISTANCE_SENSOR", "RANGEFINDER")
@@ -187,20 +184,6 @@ class AutopilotItem(NamedTuple):
     vel_up: float
 
 
-class _Heartbeat(NamedTuple):
-    type: int  # MAV_TYPE
-    autopilot: int  # MAV_AUTOPILOT
-
-
-@dataclass
-class _OtherSystem:
-    """Another system heard on the link: its frames, its heartbeat ``(type, autopilot)`` if one came, said yet."""
-
-    frames: int = 0
-    heartbeat: Optional[_Heartbeat] = None
-    said: bool = False
-
-
 _NOTHING: tuple = ()  # what a call that releases nothing returns
 
 
@@ -221,9 +204,6 @@ class Normaliser:
         self.link_name = link_name
         self._asked = sysid is not None
         self._not_applicable: Optional[str] = None  # why height integrity does not apply (vehicle_class)
-        self._others: dict[int, _OtherSystem] = {}  # other systems heard, by sysid
-        self._wait_hb_t0: Optional[float] = None  # receive time of the first tick (live)
-        self._wait_hb_next: Optional[float] = None
         self.autopilot: Optional[int] = None
         self._preselect: Deque[tuple] = deque()
         if sysid is not None:
@@ -247,6 +227,7 @@ class Normaliser:
         self.range_checks = RangeChecks(cfg)  # reading, cross-check, stuck (see .rangecheck)
         self._pressure_id = PRESSURE_IDS[cfg.baro_instance]
         self._decoders = {mid: wire.make_decoder(mid) for mid in WANTED}
+        self.others = OtherSystems(link_name, self._decoders[HEARTBEAT])  # the systems that are not the vehicle
         self._handlers = {
             HEARTBEAT: self._heartbeat,
             _ID["SYSTEM_TIME"]: self._system_time,
@@ -300,11 +281,7 @@ class Normaliser:
 
     def _frame(self, recv_s: float, msgid: int, sysid: int, compid: int, payload: bytes) -> None:
         if sysid != self.sysid:
-            self._other_system(recv_s, msgid, sysid, payload)
-            if self.sysid is None:
-                self._preselect_frame(recv_s, msgid, sysid, compid, payload)
-            else:
-                self.stats.ignored_by_sysid[sysid] = self.stats.ignored_by_sysid.get(sysid, 0) + 1
+            self._not_the_vehicle(recv_s, msgid, sysid, compid, payload)
             return
         last = self._last_recv
         if last is not None and (self._link_lost or recv_s - last > self.cfg.link_timeout_s):
@@ -346,7 +323,9 @@ class Normaliser:
         """Live links: declare the link lost after ``link_timeout_s`` of silence, and say
         what is awaited while no heartbeat of the vehicle came. Returns those events."""
         if self.autopilot is None:
-            self._say_waiting_heartbeat(now_s)
+            said = self.others.waiting(now_s, self.sysid, self._asked, self._last_recv is not None)
+            if said is not None:
+                self._emit(said)
         last = self._last_recv
         if last is not None and not self._link_lost and now_s - last > self.cfg.link_timeout_s:
             self._link_lost = True
@@ -366,10 +345,21 @@ class Normaliser:
 
     # ------------------------------------------------------------------ vehicle
 
+    def _not_the_vehicle(self, recv_s, msgid, sysid, compid, payload) -> None:
+        """A frame of another system, or of any while none is chosen: said (see
+        :class:`.systems.OtherSystems`), held until a heartbeat chooses the vehicle, or counted."""
+        said = self.others.frame(recv_s, msgid, sysid, payload, self.sysid if self.autopilot is not None else None)
+        if said is not None:
+            self._emit(said)
+        if self.sysid is None:
+            self._preselect_frame(recv_s, msgid, sysid, compid, payload)
+        else:
+            self.stats.ignored_by_sysid[sysid] = self.stats.ignored_by_sysid.get(sysid, 0) + 1
+
     def _preselect_frame(self, recv_s, msgid, sysid, compid, payload) -> None:
         if msgid == HEARTBEAT:
             f = self._decoders[HEARTBEAT](payload)
-            if f["autopilot"] != MAV_AUTOPILOT_INVALID and f["type"] != MAV_TYPE_GCS:
+            if is_vehicle_heartbeat(f):
                 self.sysid = sysid
                 self._heartbeat(f, recv_s, compid)
                 held = list(self._preselect)
@@ -384,7 +374,7 @@ class Normaliser:
         self._preselect.append((recv_s, msgid, sysid, compid, payload))
 
     def _heartbeat(self, f, recv_s, compid) -> None:
-        if self.autopilot is None and f["autopilot"] != MAV_AUTOPILOT_INVALID and f["type"] != MAV_TYPE_GCS:
+        if self.autopilot is None and is_vehicle_heartbeat(f):
             self.autopilot = f["autopilot"]
             self.time.ap_compid = compid
             self.stats.vehicle = VehicleInfo(self.sysid, compid, f["type"], f["autopilot"])
@@ -396,59 +386,8 @@ class Normaliser:
             if self._not_applicable:
                 self.stats.not_applicable = self._not_applicable
                 self._emit(Notice(recv_s, "not_applicable", notice_text(self._not_applicable)))
-            self._others.pop(self.sysid, None)  # heard before it was chosen
-            for sid in sorted(self._others):
-                self._say_ignored(recv_s, sid, final=True)
-
-    def _other_system(self, recv_s, msgid, sysid, payload) -> None:
-        """A frame from a system that is not (or not yet) the vehicle: remembered, and said once."""
-        o = self._others.get(sysid)
-        if o is None:
-            o = self._others[sysid] = _OtherSystem()
-        o.frames += 1
-        if msgid == HEARTBEAT and o.heartbeat is None:
-            try:
-                hb = self._decoders[HEARTBEAT](payload)
-                o.heartbeat = _Heartbeat(hb["type"], hb["autopilot"])
-            except Exception:
-                pass
-        if self.autopilot is not None and not o.said and (
-                o.heartbeat is not None or o.frames >= OTHER_FRAMES_BEFORE_SAYING):
-            self._say_ignored(recv_s, sysid)
-
-    def _say_ignored(self, recv_s, sysid, final: bool = False) -> None:
-        o = self._others[sysid]
-        if o.said or (o.heartbeat is None and not final and o.frames < OTHER_FRAMES_BEFORE_SAYING):
-            return
-        o.said = True
-        if o.heartbeat is None:
-            what, hint = "no heartbeat heard", f"; --sysid {sysid} to monitor it instead"
-        else:
-            what = describe_system(*o.heartbeat)
-            hint = "" if o.heartbeat.type == MAV_TYPE_GCS or o.heartbeat.autopilot == MAV_AUTOPILOT_INVALID else \
-                f"; --sysid {sysid} to monitor it instead"
-        self._emit(Notice(recv_s, "ignored", f"ignoring system {sysid} ({what}): not the monitored vehicle "
-                                             f"(system {self.sysid}){hint}"))
-
-    def _say_waiting_heartbeat(self, now_s: float) -> None:
-        if self._wait_hb_t0 is None:
-            self._wait_hb_t0 = now_s
-            self._wait_hb_next = now_s + WAIT_HEARTBEAT_S
-            return
-        if now_s < self._wait_hb_next:
-            return
-        self._wait_hb_next = now_s + WAIT_HEARTBEAT_REPEAT_S
-        heard = [f"system {sid} ({describe_system(*o.heartbeat) if o.heartbeat else 'no heartbeat'})"
-                 for sid, o in sorted(self._others.items())]
-        what = f"a heartbeat from system {self.sysid}" if self._asked else "an autopilot heartbeat"
-        since = f"{now_s - self._wait_hb_t0:.0f} s"
-        if heard:
-            text = f"waiting for {what} on {self.link_name} ({since}); heard only " + ", ".join(heard)
-        elif self._asked and self._last_recv is not None:
-            text = f"waiting for {what} on {self.link_name} ({since}); its data arrive, its heartbeat not"
-        else:
-            text = f"waiting for a heartbeat on {self.link_name} ({since}): nothing received yet"
-        self._emit(Notice(now_s, "waiting_heartbeat", text))
+            for said in self.others.vehicle_chosen(recv_s, self.sysid):
+                self._emit(said)
 
     # ------------------------------------------------------------------ time
 
@@ -886,19 +825,6 @@ class Normaliser:
         st.range_source = self.range_sel.chosen
         st.autopilot_source = self.ap_sel.chosen
         st.duration_s = self.clock.total_duration_us / 1e6
-
-
-def describe_system(mav_type: int, autopilot: int) -> str:
-    """``quadrotor, ArduPilot``: a HEARTBEAT's type and autopilot in words."""
-    def word(enum: str, value: int, prefix: str) -> str:
-        e = wire.ENUMS.get(enum, {}).get(value)
-        return e.name[len(prefix):].lower().replace("_", " ") if e is not None else f"{enum.lower()} {value}"
-
-    ap = {MAV_AUTOPILOT_ARDUPILOTMEGA: "ArduPilot", 12: "PX4", MAV_AUTOPILOT_INVALID: "no autopilot"}.get(
-        autopilot) or word("MAV_AUTOPILOT", autopilot, "MAV_AUTOPILOT_")
-    if mav_type == MAV_TYPE_GCS:
-        return "ground station"
-    return f"{word('MAV_TYPE', mav_type, 'MAV_TYPE_')}, {ap}"
 
 
 def _sample_t(s) -> int:

@@ -47,7 +47,7 @@ from ..errors import InputError
 from ..frames import down_row_from_euler
 from ..ingest import wire
 from ..ingest.clock import is_reboot
-from ..ingest.normaliser import MAV_AUTOPILOT_INVALID, MAV_TYPE_GCS
+from ..ingest.systems import MAV_AUTOPILOT_INVALID, MAV_TYPE_GCS
 from .effects import height_error_m, keeps, out_of_range_reading_m, spikes
 from .faults import describe_fault
 from .scenario import Fault
