@@ -704,32 +704,42 @@ class Normaliser:
 
     def _ap_release(self, final: bool) -> None:
         held = self._ap_held
-        if not held:
+        if not held or (self._ap_mode is None and not self._ap_choose_datum(final)):
             return
         src = self.ap_sel.chosen
-        if self._ap_mode is None:
-            ref_msl = self.gnss_ref_msl_m()
-            if ref_msl is not None and (src == "GLOBAL_POSITION_INT" or self.refs.ekf_origin_msl_m is not None):
-                self._ap_mode = "gnss_reference"
-            elif final or held[-1].boot != held[0].boot or held[-1].t_us - held[0].t_us >= self._gnss_wait_us:
-                self._ap_mode = "autopilot_home" if src == "GLOBAL_POSITION_INT" else "ekf_origin"
-            else:
-                return
-            self.stats.autopilot_reference = self._ap_mode
         ref_msl = self.gnss_ref_msl_m()
         while held:
-            t_us, recv_s, boot, alt_msl, local_up, vel_up = held.popleft()
-            if self._ap_mode == "gnss_reference":
-                if src == "GLOBAL_POSITION_INT":
-                    if alt_msl is None:
-                        self.stats.filtered["autopilot_no_position"] += 1
-                        continue
-                    h = alt_msl - ref_msl
-                else:
-                    h = local_up + self.refs.ekf_origin_msl_m - ref_msl
-            else:
-                h = local_up
-            self._guarded(AUTOPILOT_STREAM, t_us, recv_s, boot, AutopilotHeight(t_us, recv_s, boot, h, src, vel_up))
+            item = held.popleft()
+            h = self._ap_height(item, src, ref_msl)
+            if h is None:
+                self.stats.filtered["autopilot_no_position"] += 1
+                continue
+            t_us, recv_s, boot = item.t_us, item.recv_s, item.boot
+            self._guarded(AUTOPILOT_STREAM, t_us, recv_s, boot, AutopilotHeight(t_us, recv_s, boot, h, src, item.vel_up))
+
+    def _ap_choose_datum(self, final: bool) -> bool:
+        """The datum of the autopilot's heights (``stats.autopilot_reference``): the
+        GNSS reference once it is known, else, when waiting longer is no use, its
+        own (home or EKF origin). False: keep waiting."""
+        held = self._ap_held
+        src = self.ap_sel.chosen
+        ref_msl = self.gnss_ref_msl_m()
+        if ref_msl is not None and (src == "GLOBAL_POSITION_INT" or self.refs.ekf_origin_msl_m is not None):
+            self._ap_mode = "gnss_reference"
+        elif final or held[-1].boot != held[0].boot or held[-1].t_us - held[0].t_us >= self._gnss_wait_us:
+            self._ap_mode = "autopilot_home" if src == "GLOBAL_POSITION_INT" else "ekf_origin"
+        else:
+            return False
+        self.stats.autopilot_reference = self._ap_mode
+        return True
+
+    def _ap_height(self, item: AutopilotItem, src: str, ref_msl: Optional[float]) -> Optional[float]:
+        """One held autopilot height in the chosen datum (None: GLOBAL_POSITION_INT without a position)."""
+        if self._ap_mode != "gnss_reference":
+            return item.local_up
+        if src == "GLOBAL_POSITION_INT":
+            return None if item.alt_msl is None else item.alt_msl - ref_msl
+        return item.local_up + self.refs.ekf_origin_msl_m - ref_msl
 
     # ------------------------------------------------------------------ output
 
