@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 BASE := $(VENV)/.installed-base
 FULL := $(VENV)/.installed-test
 
-.PHONY: demo test test-fast install bench clean
+.PHONY: demo test test-fast golden install bench clean
 
 $(VENV)/bin/python:
 	$(PY) -m venv $(VENV)
@@ -39,6 +39,12 @@ test: $(FULL)
 # Carlo, subprocesses and live links, the shared real logs, the browser).
 test-fast: $(FULL)
 	$(BIN)/python -m pytest -q -m "not slow"
+
+# Rewrite the golden outputs (tests/golden/: mavnav audit of sitl_logs/, JSON, CSV
+# and table) with the current code, when a change of behaviour is meant; review
+# the diff of tests/golden/ before committing it. tests/test_golden.py compares.
+golden: $(BASE)
+	$(BIN)/python -m tests.support.golden
 
 bench: $(FULL)
 	$(BIN)/python bench/estimator.py

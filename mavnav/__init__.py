@@ -13,6 +13,10 @@ Conventions, written once:
 * The core (``kalman``, ``channel``, ``epochs``, ``monitor``) is pure and
   deterministic: no wall clock, no I/O. Sources, sinks and the CLI are the
   edges.
+* Sensors and report sources have one vocabulary, :class:`mavnav.sensors.Sensor`
+  (a ``str`` enum: ``gnss``, ``rangefinder``, ``baro``, ``ins``, ``imu``,
+  ``autopilot``, ``baro_ins``, ``input``); the older spellings kept in
+  outputs (``rng``, ``range``, ``baro+INS``) are declared there once.
 * Channel state ``[H, Vz, dH, da]``: height above the reference, vertical
   speed (up), barometer bias, accelerometer bias. Indices are named in
   :mod:`mavnav.channel`.

@@ -26,18 +26,19 @@ from .ingest.vehicle_class import notice_text
 from .pipeline import run
 from .report import SOURCES, AlarmEvent, EpochReport, RunSummary
 from .samples import BaroHeight, GnssHeight, RangeHeight, SpecificForceUp
+from .sensors import BARO, CHANNELS, GNSS, IMU, INPUTS, RANGEFINDER
 from .sim.effects import FaultedSource
 from .sim.faults import describe_fault, parse_faults
 from .sinks.base import Sink
 
-INPUT_KINDS = {SpecificForceUp: "imu", BaroHeight: "baro", GnssHeight: "gnss", RangeHeight: "rangefinder"}
+INPUT_KINDS = {SpecificForceUp: IMU, BaroHeight: BARO, GnssHeight: GNSS, RangeHeight: RANGEFINDER}
 
 
 def required_rates_hz(cfg: Config) -> dict[str, float]:
     """Input rates the time-to-alarm needs (the monitor's own rule)."""
     m = cfg.monitor
     aux = max(m.alarm_rejections, 1) / m.time_to_alarm_s
-    return {"imu": 10.0, "baro": 5.0, "gnss": aux, "rangefinder": aux}
+    return {IMU: 10.0, BARO: 5.0, GNSS: aux, RANGEFINDER: aux}
 
 
 class AuditSink(Sink):
@@ -92,7 +93,7 @@ class AuditSink(Sink):
         n = max(self.epochs, 1)
         for name, c in self.state_counts.items():
             out[name] = {st: round(c[st] / n, 4) for st in ("nominal", "caution", "unavailable", "alarm")}
-        out["channels_used"] = {ch: round(self.used_counts[ch] / n, 4) for ch in ("gnss", "rangefinder", "baro")}
+        out["channels_used"] = {ch: round(self.used_counts[ch] / n, 4) for ch in CHANNELS}
         out["overall"] = {st: round(self.overall[st] / n, 4) for st in ("nominal", "caution", "unavailable", "alarm")}
         return out
 
@@ -130,7 +131,7 @@ def audit_file(path: str | Path, cfg: Config, sysid: Optional[int] = None,
     stats = src.stats
     duration = stats.duration_s
     rates = {k: (round(sink.input_counts[k] / duration, 3) if duration > 0 else 0.0)
-             for k in ("imu", "baro", "gnss", "rangefinder")}
+             for k in INPUTS}
     need = required_rates_hz(cfg)
     result = {
         "path": str(path),

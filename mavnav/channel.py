@@ -57,6 +57,7 @@ import numpy as np
 from .config import Config
 from .errors import NonFiniteInputError
 from .kalman import correlated_step, normalised_innovation
+from .sensors import CHANNELS, Sensor  # noqa: F401 (CHANNELS: re-exported)
 
 # Named state indices.
 H, VZ, DH, DA, GB = 0, 1, 2, 3, 4
@@ -64,11 +65,10 @@ N_STATES = 5
 N_PAPER = 4  # the paper's states [H, Vz, dH, da]
 STATE_NAMES = ("height_ref_m", "vel_up_mps", "baro_bias_m", "acc_bias_mps2", "gnss_error_m")
 
-ChannelKind = Literal["gnss", "rangefinder", "baro"]
-CHANNELS: tuple[ChannelKind, ...] = ("gnss", "rangefinder", "baro")
-_AUX_ROW = {"gnss": "gnss", "rangefinder": "rng", "baro": None}
+ChannelKind = Sensor  # one of CHANNELS: gnss, rangefinder, baro
+_AUX_ROW = {Sensor.GNSS: Sensor.GNSS.short, Sensor.RANGEFINDER: Sensor.RANGEFINDER.short, Sensor.BARO: None}  # gnss, rng
 # the entry of the aux row at b_g: the GNSS row observes the GNSS error, the rangefinder row does not
-AUX_GB = {"gnss": 1.0, "rangefinder": 0.0, "baro": 0.0}
+AUX_GB = {Sensor.GNSS: 1.0, Sensor.RANGEFINDER: 0.0, Sensor.BARO: 0.0}
 
 H_BARO = np.array([1.0, 0.0, 1.0, 0.0, 0.0])
 

@@ -19,6 +19,10 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from .constants import G0_MPS2
 from .errors import ConfigError
 
+# The vehicle clock stepping back by more than this is a reboot (the default of
+# ingest.reboot_jump_s; the rule itself is mavnav.ingest.clock.is_reboot).
+REBOOT_JUMP_S = 2.0
+
 
 class _Section(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, strict=False)
@@ -220,8 +224,9 @@ class IngestConfig(_Section):
     # A stream is in a gap when silent longer than max(gap_min_s, gap_factor * its usual interval).
     gap_min_s: float = Field(0.5, gt=0)
     gap_factor: float = Field(5.0, gt=1)
-    # Vehicle time jumping back more than this (confirmed by the next message) is a reboot.
-    reboot_jump_s: float = Field(2.0, gt=0)
+    # Vehicle time jumping back more than this (confirmed by the next messages) is a reboot:
+    # the reboot rule, mavnav.ingest.clock.is_reboot (the fault injector uses it too).
+    reboot_jump_s: float = Field(REBOOT_JUMP_S, gt=0)
     # Messages held (per link) until the first autopilot heartbeat selects the vehicle.
     preselect_max_frames: int = Field(20000, ge=0)
     # The reference point follows the autopilot's home when it moves (a new home set at

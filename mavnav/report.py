@@ -16,17 +16,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from itertools import combinations
 from typing import Literal, Optional
+
+from .sensors import CHANNELS, SOURCES, Sensor  # noqa: F401 (SOURCES: re-exported)
 
 State = Literal["nominal", "caution", "unavailable", "alarm"]
 STATES: tuple[State, ...] = ("nominal", "caution", "unavailable", "alarm")
 
-Source = Literal["gnss", "rangefinder", "baro_ins", "input"]
-SOURCES: tuple[Source, ...] = ("gnss", "rangefinder", "baro_ins", "input")
+Source = Sensor  # one of SOURCES (mavnav.sensors): gnss, rangefinder, baro_ins, input
 
 # Channel names, in the bank's order, and the source each one's aux sensor is.
-CHANNEL_NAMES = ("gnss", "rangefinder", "baro")
-PAIR_NAMES = ("gnss-rng", "gnss-baro", "rng-baro")
+CHANNEL_NAMES = CHANNELS
+# the channel pairs, in the bank's order (bank.PAIRS), by the channels' short names
+PAIR_NAMES = tuple(f"{a.short}-{b.short}" for a, b in combinations(CHANNELS, 2))  # gnss-rng, gnss-baro, rng-baro
 
 NAN = math.nan
 

@@ -8,7 +8,10 @@ clock on a live link). ``boot`` counts reboots seen on this link (0 for the
 first boot); vehicle time restarts at each one.
 
 MAVLink field names never appear past this module's producers (the
-normaliser); consumers see only these types.
+normaliser); consumers see only these types. Sensors are named by
+:mod:`mavnav.sensors`: the stream kinds below (``Gap.kind``,
+``Rejected.sensor``) are a :class:`~mavnav.sensors.Sensor`'s ``stream``
+spelling (``imu``, ``baro``, ``gnss``, ``range``, ``autopilot``).
 
 Event types (``Reboot``, ``Gap``, ``LinkLost``, ``LinkRecovered``,
 ``Rejected``, ``ReferenceSet``, ``ReferenceMoved``, ``Notice``) travel in the same stream as the samples so
@@ -155,7 +158,7 @@ class Gap:
     t_us: int  # vehicle time of the first sample after the gap
     recv_s: float
     boot: int
-    kind: str  # "imu", "baro", "gnss", "range", ...
+    kind: str  # the stream that was silent: a Sensor's stream kind ("imu", "baro", "gnss", "range", ...)
     length_s: float
 
 
@@ -182,7 +185,7 @@ class Rejected:
     detail: str
     t_us: Optional[int] = None
     boot: Optional[int] = None
-    sensor: Optional[str] = None  # the measurement kind refused ("range", "gnss", ...) when it was one
+    sensor: Optional[str] = None  # the stream kind refused (Sensor.stream: "range", "imu", ...) when it was one
     # the refused reading and the sensor's valid range, where there is one (NaN: not known)
     value_m: float = float("nan")
     min_m: float = float("nan")

@@ -11,7 +11,12 @@ Every test has a kind, a marker (a live replay of a shared log has two):
   alarm, Monte Carlo);
 * ``integration``: real sockets, processes, a browser, MAVProxy, a Dask
   cluster, the CLI as a subprocess;
-* ``realdata``: the shared real logs in ``../shared`` (read in place).
+* ``realdata``: the shared real logs in ``../shared`` (read in place);
+* ``golden``: behaviour unchanged, byte for byte: ``mavnav audit`` of the
+  repository's own ``sitl_logs/`` against the JSON, CSV and table stored in
+  ``tests/golden/`` (a few seconds, in the fast lane; ``make golden``
+  rewrites them when a change of behaviour is meant, see
+  ``tests/support/golden.py``).
 
 A module declares its kind with ``pytestmark``; a test of another kind in it
 says so with its own marker (``pytest --co -q -m realdata`` lists a kind). The kinds are orthogonal to ``slow`` (what the
@@ -31,7 +36,7 @@ import pytest
 
 from tests.support.emit import Peer
 
-KINDS = ("unit", "property", "simulation", "integration", "realdata")
+KINDS = ("unit", "property", "simulation", "integration", "realdata", "golden")
 
 
 def pytest_collection_modifyitems(config, items):

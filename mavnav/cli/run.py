@@ -17,6 +17,7 @@ from ..errors import MavnavError
 from ..home_frame import home_moved_text
 from ..report import AlarmEvent, RunSummary
 from ..samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceMoved, ReferenceSet
+from ..sensors import BARO
 from ..sinks.base import Sink
 from ..sinks.csv_sink import CsvSink
 from . import main
@@ -87,7 +88,7 @@ class AlarmPrinter(Sink):
         elif ts is ReferenceMoved:
             click.echo(f"[t={s.t_us * 1e-6:9.3f} s boot {s.boot}] input       {home_moved_text(s)}", err=True)
         elif ts is ReferenceSet:
-            value = f"{s.value:.1f} Pa" if s.kind == "baro" else f"{s.value:.2f} m"
+            value = f"{s.value:.1f} Pa" if s.kind == BARO else f"{s.value:.2f} m"
             at = f", reference point {s.alt_ref_msl_m:.2f} m MSL" if s.alt_ref_msl_m is not None else ""
             click.echo(f"[t={s.t_us * 1e-6:9.3f} s boot {s.boot}] input       height reference ({s.kind}): "
                        f"{value}{at}, {REFERENCE_ORIGIN_WORDS.get(s.origin, s.origin)}", err=True)

@@ -27,8 +27,8 @@ from typing import Optional, Sequence
 from ..audit import worst_state
 from ..errors import MavnavError
 from ..report import SOURCES
+from ..sensors import INPUTS
 
-INPUTS = ("imu", "baro", "gnss", "rangefinder")
 STATES = ("nominal", "caution", "unavailable", "alarm")
 _PAREN = re.compile(r"\s*\([^()]*\)")
 _NUMBER = re.compile(r"(?<![\w.])[+-]?\d+(?:\.\d+)?(?:e[+-]?\d+)?")

@@ -28,6 +28,17 @@ from typing import Optional
 
 UNIX_THRESHOLD_US = 1_000_000_000_000_000
 
+
+def is_reboot(last: float, t: float, jump: float) -> bool:
+    """The reboot rule, written once: a vehicle time ``t`` more than ``jump``
+    behind the latest one, ``last``, is a new boot; less is a step of the
+    vehicle clock (or jitter). All three in one unit (us here, s in the fault
+    injector). ``jump`` is ``ingest.reboot_jump_s`` (default
+    :data:`mavnav.config.REBOOT_JUMP_S`). The normaliser applies it once
+    several messages confirm the new time base (:mod:`.timebase`); the fault
+    injector, which follows a recorded log, on each message."""
+    return t < last - jump
+
 ACCEPT = 0
 HOLD = 1
 

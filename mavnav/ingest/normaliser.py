@@ -11,7 +11,10 @@ attitude are released when it arrives; within each kind and boot ``t_us``
 strictly increases.
 
 Decisions the issue left open (see also the module docs of :mod:`.clock`,
-:mod:`.attitude`, :mod:`.references`, :mod:`.streams`):
+:mod:`.attitude`, :mod:`.references`, :mod:`.streams`). Stages of their own:
+the time base (:mod:`.timebase`), the height references (:mod:`.heightref`),
+the rangefinder's checks (:mod:`.rangecheck`), and the other systems on the
+link and what is said about them (:mod:`.systems`):
 
 * **Vehicle.** The first HEARTBEAT with ``autopilot != MAV_AUTOPILOT_INVALID``
   and ``type != MAV_TYPE_GCS`` selects the system (or the ``sysid`` given).
@@ -92,10 +95,8 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
 from typing import Deque, List, NamedTuple, Optional, Sequence
 
-from ..atmosphere import height_from_pressure_m
 from ..config import IngestConfig
 from ..constants import G0_MPS2
 from ..frames import cos_tilt, down_row_from_quat, f_up_from_body, quat_from_euler
@@ -114,30 +115,26 @@ from ..samples import (
     Rejected,
     SpecificForceUp,
 )
+from ..sensors import AUTOPILOT_STREAM, BARO_STREAM, GNSS_STREAM, IMU_STREAM, RANGE_STREAM
 from . import wire
 from .attitude import AttitudeInterpolator
 from .heightref import GNSS_FIXED, BaroItem, GnssItem, HeightReferences
+from .rangecheck import RangeChecks, Refusal
 from .timebase import SETTLED, ClockStepped, NewBoot, Placed, TimeBase
 from .stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
 from .streams import KindGuard, SourceSelector
+from .systems import MAV_AUTOPILOT_ARDUPILOTMEGA, OtherSystems, describe_system, is_vehicle_heartbeat
 from .vehicle_class import is_height_input, not_applicable_reason, notice_text
 
 MILLI_G_MPS2 = G0_MPS2 / 1000.0
-MAV_AUTOPILOT_ARDUPILOTMEGA = 3
-MAV_AUTOPILOT_INVALID = 8
-MAV_TYPE_GCS = 6
 MAV_COMP_ID_AUTOPILOT1 = 1
 MAV_SENSOR_ROTATION_PITCH_270 = 25  # downward
-DISTANCE_SENSOR_QUALITY_INVALID = 1
 UINT32_MAX = 0xFFFFFFFF
 MAX_SPECIFIC_FORCE_MPS2 = 50 * G0_MPS2  # beyond any airframe IMU range
 MAX_PRESSURE_PA = 2.0e7  # 200 bar: deeper than any ROV depth sensor reads
 HOME_UNSET_MM = 50  # GLOBAL_POSITION_INT alt - relative_alt below this: ArduPilot's home not yet set
 PRE_IMU_HOLD_US = 5_000_000  # at most this long do measurements wait for the first IMU sample of a boot
-GATED = frozenset(("baro", "gnss", "range"))
-WAIT_HEARTBEAT_S = 2.0  # live: no vehicle heartbeat this long after starting: say what is awaited
-WAIT_HEARTBEAT_REPEAT_S = 10.0  # and again this often
-OTHER_FRAMES_BEFORE_SAYING = 20  # another system without a heartbeat is said after this many frames
+GATED = frozenset((BARO_STREAM, GNSS_STREAM, RANGE_STREAM))
 
 IMU_RANKING = ("HIGHRES_IMU", "RAW_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3")
 RANGE_RANKING = ("DISTANCE_SENSOR", "RANGEFINDER")
@@ -187,39 +184,6 @@ class AutopilotItem(NamedTuple):
     vel_up: float
 
 
-class _RangeReading(NamedTuple):
-    """The latest reading of one rangefinder message, for the cross-check."""
-
-    recv_s: float
-    range_m: float
-
-
-class _Heartbeat(NamedTuple):
-    type: int  # MAV_TYPE
-    autopilot: int  # MAV_AUTOPILOT
-
-
-@dataclass
-class _OtherSystem:
-    """Another system heard on the link: its frames, its heartbeat ``(type, autopilot)`` if one came, said yet."""
-
-    frames: int = 0
-    heartbeat: Optional[_Heartbeat] = None
-    said: bool = False
-
-
-@dataclass
-class _RangeRun:
-    """One raw rangefinder value repeated since ``t_start_us`` (boot ``boot``),
-    with the lowest and highest pressure seen meanwhile (the stuck test)."""
-
-    raw: object
-    t_start_us: int
-    p_min: Optional[float]
-    p_max: Optional[float]
-    boot: int
-
-
 _NOTHING: tuple = ()  # what a call that releases nothing returns
 
 
@@ -240,9 +204,6 @@ class Normaliser:
         self.link_name = link_name
         self._asked = sysid is not None
         self._not_applicable: Optional[str] = None  # why height integrity does not apply (vehicle_class)
-        self._others: dict[int, _OtherSystem] = {}  # other systems heard, by sysid
-        self._wait_hb_t0: Optional[float] = None  # receive time of the first tick (live)
-        self._wait_hb_next: Optional[float] = None
         self.autopilot: Optional[int] = None
         self._preselect: Deque[tuple] = deque()
         if sysid is not None:
@@ -263,13 +224,10 @@ class Normaliser:
         self._ap_mode: Optional[str] = None
         self._gnss_wait_us = int(cfg.gnss_reference.home_wait_s * 1e6)
         self._cos_max_tilt = math.cos(math.radians(cfg.rangefinder_max_tilt_deg))
-        self._stuck_us = int(cfg.rangefinder_stuck_s * 1e6)
-        self._range_run: Optional[_RangeRun] = None
-        # the latest reading of each rangefinder message, for the cross-check, by message name
-        self._range_last: dict[str, _RangeReading] = {}
-        self._last_pressure_pa: Optional[float] = None
+        self.range_checks = RangeChecks(cfg)  # reading, cross-check, stuck (see .rangecheck)
         self._pressure_id = PRESSURE_IDS[cfg.baro_instance]
         self._decoders = {mid: wire.make_decoder(mid) for mid in WANTED}
+        self.others = OtherSystems(link_name, self._decoders[HEARTBEAT])  # the systems that are not the vehicle
         self._handlers = {
             HEARTBEAT: self._heartbeat,
             _ID["SYSTEM_TIME"]: self._system_time,
@@ -323,11 +281,7 @@ class Normaliser:
 
     def _frame(self, recv_s: float, msgid: int, sysid: int, compid: int, payload: bytes) -> None:
         if sysid != self.sysid:
-            self._other_system(recv_s, msgid, sysid, payload)
-            if self.sysid is None:
-                self._preselect_frame(recv_s, msgid, sysid, compid, payload)
-            else:
-                self.stats.ignored_by_sysid[sysid] = self.stats.ignored_by_sysid.get(sysid, 0) + 1
+            self._not_the_vehicle(recv_s, msgid, sysid, compid, payload)
             return
         last = self._last_recv
         if last is not None and (self._link_lost or recv_s - last > self.cfg.link_timeout_s):
@@ -369,7 +323,9 @@ class Normaliser:
         """Live links: declare the link lost after ``link_timeout_s`` of silence, and say
         what is awaited while no heartbeat of the vehicle came. Returns those events."""
         if self.autopilot is None:
-            self._say_waiting_heartbeat(now_s)
+            said = self.others.waiting(now_s, self.sysid, self._asked, self._last_recv is not None)
+            if said is not None:
+                self._emit(said)
         last = self._last_recv
         if last is not None and not self._link_lost and now_s - last > self.cfg.link_timeout_s:
             self._link_lost = True
@@ -389,10 +345,21 @@ class Normaliser:
 
     # ------------------------------------------------------------------ vehicle
 
+    def _not_the_vehicle(self, recv_s, msgid, sysid, compid, payload) -> None:
+        """A frame of another system, or of any while none is chosen: said (see
+        :class:`.systems.OtherSystems`), held until a heartbeat chooses the vehicle, or counted."""
+        said = self.others.frame(recv_s, msgid, sysid, payload, self.sysid if self.autopilot is not None else None)
+        if said is not None:
+            self._emit(said)
+        if self.sysid is None:
+            self._preselect_frame(recv_s, msgid, sysid, compid, payload)
+        else:
+            self.stats.ignored_by_sysid[sysid] = self.stats.ignored_by_sysid.get(sysid, 0) + 1
+
     def _preselect_frame(self, recv_s, msgid, sysid, compid, payload) -> None:
         if msgid == HEARTBEAT:
             f = self._decoders[HEARTBEAT](payload)
-            if f["autopilot"] != MAV_AUTOPILOT_INVALID and f["type"] != MAV_TYPE_GCS:
+            if is_vehicle_heartbeat(f):
                 self.sysid = sysid
                 self._heartbeat(f, recv_s, compid)
                 held = list(self._preselect)
@@ -407,7 +374,7 @@ class Normaliser:
         self._preselect.append((recv_s, msgid, sysid, compid, payload))
 
     def _heartbeat(self, f, recv_s, compid) -> None:
-        if self.autopilot is None and f["autopilot"] != MAV_AUTOPILOT_INVALID and f["type"] != MAV_TYPE_GCS:
+        if self.autopilot is None and is_vehicle_heartbeat(f):
             self.autopilot = f["autopilot"]
             self.time.ap_compid = compid
             self.stats.vehicle = VehicleInfo(self.sysid, compid, f["type"], f["autopilot"])
@@ -419,59 +386,8 @@ class Normaliser:
             if self._not_applicable:
                 self.stats.not_applicable = self._not_applicable
                 self._emit(Notice(recv_s, "not_applicable", notice_text(self._not_applicable)))
-            self._others.pop(self.sysid, None)  # heard before it was chosen
-            for sid in sorted(self._others):
-                self._say_ignored(recv_s, sid, final=True)
-
-    def _other_system(self, recv_s, msgid, sysid, payload) -> None:
-        """A frame from a system that is not (or not yet) the vehicle: remembered, and said once."""
-        o = self._others.get(sysid)
-        if o is None:
-            o = self._others[sysid] = _OtherSystem()
-        o.frames += 1
-        if msgid == HEARTBEAT and o.heartbeat is None:
-            try:
-                hb = self._decoders[HEARTBEAT](payload)
-                o.heartbeat = _Heartbeat(hb["type"], hb["autopilot"])
-            except Exception:
-                pass
-        if self.autopilot is not None and not o.said and (
-                o.heartbeat is not None or o.frames >= OTHER_FRAMES_BEFORE_SAYING):
-            self._say_ignored(recv_s, sysid)
-
-    def _say_ignored(self, recv_s, sysid, final: bool = False) -> None:
-        o = self._others[sysid]
-        if o.said or (o.heartbeat is None and not final and o.frames < OTHER_FRAMES_BEFORE_SAYING):
-            return
-        o.said = True
-        if o.heartbeat is None:
-            what, hint = "no heartbeat heard", f"; --sysid {sysid} to monitor it instead"
-        else:
-            what = describe_system(*o.heartbeat)
-            hint = "" if o.heartbeat.type == MAV_TYPE_GCS or o.heartbeat.autopilot == MAV_AUTOPILOT_INVALID else \
-                f"; --sysid {sysid} to monitor it instead"
-        self._emit(Notice(recv_s, "ignored", f"ignoring system {sysid} ({what}): not the monitored vehicle "
-                                             f"(system {self.sysid}){hint}"))
-
-    def _say_waiting_heartbeat(self, now_s: float) -> None:
-        if self._wait_hb_t0 is None:
-            self._wait_hb_t0 = now_s
-            self._wait_hb_next = now_s + WAIT_HEARTBEAT_S
-            return
-        if now_s < self._wait_hb_next:
-            return
-        self._wait_hb_next = now_s + WAIT_HEARTBEAT_REPEAT_S
-        heard = [f"system {sid} ({describe_system(*o.heartbeat) if o.heartbeat else 'no heartbeat'})"
-                 for sid, o in sorted(self._others.items())]
-        what = f"a heartbeat from system {self.sysid}" if self._asked else "an autopilot heartbeat"
-        since = f"{now_s - self._wait_hb_t0:.0f} s"
-        if heard:
-            text = f"waiting for {what} on {self.link_name} ({since}); heard only " + ", ".join(heard)
-        elif self._asked and self._last_recv is not None:
-            text = f"waiting for {what} on {self.link_name} ({since}); its data arrive, its heartbeat not"
-        else:
-            text = f"waiting for a heartbeat on {self.link_name} ({since}): nothing received yet"
-        self._emit(Notice(now_s, "waiting_heartbeat", text))
+            for said in self.others.vehicle_chosen(recv_s, self.sysid):
+                self._emit(said)
 
     # ------------------------------------------------------------------ time
 
@@ -516,7 +432,7 @@ class Normaliser:
         self._settle_boot()  # what belongs to the old boot goes out before the Reboot event
         last, boot = self.time.new_boot(t_us, recv_s)
         self.att.reset()
-        self._range_run = None
+        self.range_checks.stuck.reset()
         self.refs.new_boot()
         self._imu_out = False
         self.stats.reboots += 1
@@ -604,7 +520,7 @@ class Normaliser:
 
     def _imu_selected(self, item: ImuItem) -> None:
         self.stats.imu_source = self.imu_sel.chosen
-        if not self._admit("imu", item.t_us, item.recv_s, item.boot):
+        if not self._admit(IMU_STREAM, item.t_us, item.recv_s, item.boot):
             return
         self.att.pending.append((item.t_us, item))
         self._resolve_attitude()
@@ -627,7 +543,7 @@ class Normaliser:
                 self._reject(recv_s, "no_attitude", f"{name}: no attitude within {self.cfg.attitude_max_age_s} s", t_us, boot)
                 continue
             f_up = f_up_from_body(fb, down_row_from_quat(q))
-            self._yield("imu", SpecificForceUp(t_us, recv_s, boot, f_up, name))
+            self._yield(IMU_STREAM, SpecificForceUp(t_us, recv_s, boot, f_up, name))
 
     # ------------------------------------------------------------------ barometer
 
@@ -642,11 +558,7 @@ class Normaliser:
         self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "pressure", p_pa))
 
     def _pressure_at(self, p_pa, t_us, recv_s) -> None:
-        self._last_pressure_pa = p_pa
-        run = self._range_run
-        if run is not None:
-            run.p_min = p_pa if run.p_min is None else min(run.p_min, p_pa)
-            run.p_max = p_pa if run.p_max is None else max(run.p_max, p_pa)
+        self.range_checks.stuck.pressure(p_pa)
         self._on_refs(self.refs.pressure(BaroItem(t_us, recv_s, self.clock.boot, p_pa)))
 
     # ------------------------------------------------------------------ GNSS
@@ -695,8 +607,7 @@ class Normaliser:
             return
         for it in self._noted(self.range_sel, "DISTANCE_SENSOR"):
             self._range_selected(it)
-        if f["signal_quality"] != DISTANCE_SENSOR_QUALITY_INVALID:
-            self._range_last["DISTANCE_SENSOR"] = _RangeReading(recv_s, f["current_distance"] / 100.0)
+        self.range_checks.cross.note("DISTANCE_SENSOR", f, recv_s)
         self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "distance_sensor", f))
 
     def _distance_sensor_at(self, f, t_us, recv_s) -> None:
@@ -705,8 +616,7 @@ class Normaliser:
             self._range_selected(it)
 
     def _rangefinder(self, f, recv_s, compid) -> None:
-        if _finite(f["distance"]):
-            self._range_last["RANGEFINDER"] = _RangeReading(recv_s, f["distance"])
+        self.range_checks.cross.note("RANGEFINDER", f, recv_s)
         self._on_time(self.time.untimed(recv_s, "rangefinder", f, "RANGEFINDER"))  # no time field: see clock.py
 
     def _rangefinder_at(self, f, t_us, recv_s) -> None:
@@ -719,62 +629,22 @@ class Normaliser:
     def _range_selected(self, item) -> None:
         t_us, recv_s, boot, name, f = item
         self.stats.range_source = self.range_sel.chosen
-        if name == "DISTANCE_SENSOR":
-            raw = f["current_distance"]
-            range_m = raw / 100.0  # cm
-            lo_m = f["min_distance"] / 100.0
-            hi_m = f["max_distance"] / 100.0 if f["max_distance"] > 0 else self.cfg.rangefinder_max_m
-            if f["signal_quality"] == DISTANCE_SENSOR_QUALITY_INVALID:
-                self._reject(recv_s, "invalid_quality", f"{name} signal_quality 1 (invalid)", t_us, boot, sensor="range")
-                return
-        else:
-            raw = f["distance"]
-            range_m = raw  # m
-            lo_m, hi_m = self.cfg.rangefinder_min_m, self.cfg.rangefinder_max_m
-            if not _finite(range_m):
-                self._reject(recv_s, "nan", f"{name} with a non-finite distance", t_us, boot, sensor="range")
-                return
-            if range_m < 0:
-                self._reject(recv_s, "impossible", f"{name} negative distance {range_m:.3g} m", t_us, boot, sensor="range")
-                return
-        if not lo_m <= range_m <= hi_m:
-            self._reject(recv_s, "out_of_range", f"{name} {range_m:.3f} m outside [{lo_m:g}, {hi_m:g}] m", t_us, boot, sensor="range",
-                         value_m=range_m, min_m=lo_m, max_m=hi_m)
+        r = self.range_checks.check(name, f, recv_s, t_us, boot)
+        if type(r) is Refusal:
+            self._reject(recv_s, r.kind, r.detail, t_us, boot, sensor=RANGE_STREAM, value_m=r.value_m, min_m=r.min_m,
+                         max_m=r.max_m)
             return
-        other = self._range_last.get("RANGEFINDER" if name == "DISTANCE_SENSOR" else "DISTANCE_SENSOR")
-        if other is not None and abs(recv_s - other.recv_s) <= self.cfg.range_cross_max_age_s:
-            tol = max(self.cfg.range_cross_tol_m, self.cfg.range_cross_tol_frac * max(range_m, other.range_m))
-            if abs(range_m - other.range_m) > tol:
-                self._reject(recv_s, "disagrees", f"{name} {range_m:.2f} m but the same rangefinder's "
-                             f"{'RANGEFINDER' if name == 'DISTANCE_SENSOR' else 'DISTANCE_SENSOR'} {other.range_m:.2f} m",
-                             t_us, boot, sensor="range", value_m=range_m, min_m=lo_m, max_m=hi_m)
-                return
-        if self._stuck(raw, t_us, boot):
-            self._reject(recv_s, "stuck", f"{name} reads {range_m:.3f} m for {self.cfg.rangefinder_stuck_s} s while the baro moved", t_us, boot, sensor="range",
-                         value_m=range_m, min_m=lo_m, max_m=hi_m)
-            return
-        if not self._admit("range", t_us, recv_s, boot):
+        if not self._admit(RANGE_STREAM, t_us, recv_s, boot):
             return
         q = self.att.latest(t_us)
         if q is None:
-            self._reject(recv_s, "no_attitude", f"{name}: no attitude for tilt correction", t_us, boot, sensor="range")
+            self._reject(recv_s, "no_attitude", f"{name}: no attitude for tilt correction", t_us, boot, sensor=RANGE_STREAM)
             return
         c = cos_tilt(down_row_from_quat(q))
         if c < self._cos_max_tilt:
-            self._reject(recv_s, "tilt", f"{name}: tilted {math.degrees(math.acos(max(-1.0, min(1.0, c)))):.0f} deg", t_us, boot, sensor="range")
+            self._reject(recv_s, "tilt", f"{name}: tilted {math.degrees(math.acos(max(-1.0, min(1.0, c)))):.0f} deg", t_us, boot, sensor=RANGE_STREAM)
             return
-        self._yield("range", RangeHeight(t_us, recv_s, boot, range_m * c, range_m, name, lo_m, hi_m))
-
-    def _stuck(self, raw, t_us, boot) -> bool:
-        run = self._range_run
-        p = self._last_pressure_pa
-        if run is None or run.raw != raw or run.boot != boot or t_us < run.t_start_us:
-            self._range_run = _RangeRun(raw, t_us, p, p, boot)
-            return False
-        if t_us - run.t_start_us < self._stuck_us or run.p_min is None:
-            return False
-        moved_m = height_from_pressure_m(run.p_min, run.p_max)  # p_min above p_max
-        return moved_m >= self.cfg.rangefinder_stuck_min_move_m
+        self._yield(RANGE_STREAM, RangeHeight(t_us, recv_s, boot, r.range_m * c, r.range_m, name, r.lo_m, r.hi_m))
 
     # ------------------------------------------------------------------ autopilot's own height
 
@@ -834,32 +704,42 @@ class Normaliser:
 
     def _ap_release(self, final: bool) -> None:
         held = self._ap_held
-        if not held:
+        if not held or (self._ap_mode is None and not self._ap_choose_datum(final)):
             return
         src = self.ap_sel.chosen
-        if self._ap_mode is None:
-            ref_msl = self.gnss_ref_msl_m()
-            if ref_msl is not None and (src == "GLOBAL_POSITION_INT" or self.refs.ekf_origin_msl_m is not None):
-                self._ap_mode = "gnss_reference"
-            elif final or held[-1].boot != held[0].boot or held[-1].t_us - held[0].t_us >= self._gnss_wait_us:
-                self._ap_mode = "autopilot_home" if src == "GLOBAL_POSITION_INT" else "ekf_origin"
-            else:
-                return
-            self.stats.autopilot_reference = self._ap_mode
         ref_msl = self.gnss_ref_msl_m()
         while held:
-            t_us, recv_s, boot, alt_msl, local_up, vel_up = held.popleft()
-            if self._ap_mode == "gnss_reference":
-                if src == "GLOBAL_POSITION_INT":
-                    if alt_msl is None:
-                        self.stats.filtered["autopilot_no_position"] += 1
-                        continue
-                    h = alt_msl - ref_msl
-                else:
-                    h = local_up + self.refs.ekf_origin_msl_m - ref_msl
-            else:
-                h = local_up
-            self._guarded("autopilot", t_us, recv_s, boot, AutopilotHeight(t_us, recv_s, boot, h, src, vel_up))
+            item = held.popleft()
+            h = self._ap_height(item, src, ref_msl)
+            if h is None:
+                self.stats.filtered["autopilot_no_position"] += 1
+                continue
+            t_us, recv_s, boot = item.t_us, item.recv_s, item.boot
+            self._guarded(AUTOPILOT_STREAM, t_us, recv_s, boot, AutopilotHeight(t_us, recv_s, boot, h, src, item.vel_up))
+
+    def _ap_choose_datum(self, final: bool) -> bool:
+        """The datum of the autopilot's heights (``stats.autopilot_reference``): the
+        GNSS reference once it is known, else, when waiting longer is no use, its
+        own (home or EKF origin). False: keep waiting."""
+        held = self._ap_held
+        src = self.ap_sel.chosen
+        ref_msl = self.gnss_ref_msl_m()
+        if ref_msl is not None and (src == "GLOBAL_POSITION_INT" or self.refs.ekf_origin_msl_m is not None):
+            self._ap_mode = "gnss_reference"
+        elif final or held[-1].boot != held[0].boot or held[-1].t_us - held[0].t_us >= self._gnss_wait_us:
+            self._ap_mode = "autopilot_home" if src == "GLOBAL_POSITION_INT" else "ekf_origin"
+        else:
+            return False
+        self.stats.autopilot_reference = self._ap_mode
+        return True
+
+    def _ap_height(self, item: AutopilotItem, src: str, ref_msl: Optional[float]) -> Optional[float]:
+        """One held autopilot height in the chosen datum (None: GLOBAL_POSITION_INT without a position)."""
+        if self._ap_mode != "gnss_reference":
+            return item.local_up
+        if src == "GLOBAL_POSITION_INT":
+            return None if item.alt_msl is None else item.alt_msl - ref_msl
+        return item.local_up + self.refs.ekf_origin_msl_m - ref_msl
 
     # ------------------------------------------------------------------ output
 
@@ -881,7 +761,7 @@ class Normaliser:
         self.stats.samples[kind] += 1
         if kind not in GATED or (self._imu_out and not self._pre_imu):
             self._out.append(sample)
-            if kind == "imu":
+            if kind == IMU_STREAM:
                 self._imu_out = True  # what waited joins the output at the end of this frame (_merge_gate)
             return
         held = self._pre_imu
@@ -917,9 +797,9 @@ class Normaliser:
         for x in out:
             kind = type(x)
             if kind is BaroHeight:
-                self._guarded("baro", x.t_us, x.recv_s, x.boot, x)
+                self._guarded(BARO_STREAM, x.t_us, x.recv_s, x.boot, x)
             elif kind is GnssHeight:
-                self._guarded("gnss", x.t_us, x.recv_s, x.boot, x)
+                self._guarded(GNSS_STREAM, x.t_us, x.recv_s, x.boot, x)
             elif x is GNSS_FIXED:
                 self._ap_release(final=False)
             else:
@@ -955,19 +835,6 @@ class Normaliser:
         st.range_source = self.range_sel.chosen
         st.autopilot_source = self.ap_sel.chosen
         st.duration_s = self.clock.total_duration_us / 1e6
-
-
-def describe_system(mav_type: int, autopilot: int) -> str:
-    """``quadrotor, ArduPilot``: a HEARTBEAT's type and autopilot in words."""
-    def word(enum: str, value: int, prefix: str) -> str:
-        e = wire.ENUMS.get(enum, {}).get(value)
-        return e.name[len(prefix):].lower().replace("_", " ") if e is not None else f"{enum.lower()} {value}"
-
-    ap = {MAV_AUTOPILOT_ARDUPILOTMEGA: "ArduPilot", 12: "PX4", MAV_AUTOPILOT_INVALID: "no autopilot"}.get(
-        autopilot) or word("MAV_AUTOPILOT", autopilot, "MAV_AUTOPILOT_")
-    if mav_type == MAV_TYPE_GCS:
-        return "ground station"
-    return f"{word('MAV_TYPE', mav_type, 'MAV_TYPE_')}, {ap}"
 
 
 def _sample_t(s) -> int:

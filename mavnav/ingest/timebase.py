@@ -43,7 +43,7 @@ from __future__ import annotations
 
 from typing import Iterable, Iterator, List, NamedTuple, Optional, Tuple, Union
 
-from .clock import HOLD, UNIX_THRESHOLD_US, StreamClocks, VehicleClock
+from .clock import HOLD, UNIX_THRESHOLD_US, StreamClocks, VehicleClock, is_reboot
 
 MAV_COMP_ID_AUTOPILOT1 = 1
 BEHIND_US = 300_000  # a vehicle time this far behind the clock starts a candidate time base
@@ -258,7 +258,7 @@ class TimeBase:
         clock = self.clock
         t0, recv0 = cands[0].t_us, cands[0].recv_s
         last = clock.last_t_us
-        if t0 < last - clock.jump_us:
+        if is_reboot(last, t0, clock.jump_us):
             yield NewBoot(t0, recv0)
         elif t0 < last:
             step = last - t0 + CLOCK_STEP_GAP_US  # the first new time just after the last old one

@@ -25,6 +25,7 @@ from __future__ import annotations
 from typing import Optional
 
 from ..samples import BaroHeight, GnssHeight, RangeHeight, Rejected
+from ..sensors import RANGE_STREAM
 
 # MAV_TYPE -> why height integrity does not apply (absent: it applies)
 NOT_APPLICABLE_MAV_TYPES = {
@@ -51,4 +52,4 @@ def notice_text(reason: str) -> str:
 def is_height_input(event) -> bool:
     """A baro, GNSS or rangefinder sample, or a refused rangefinder reading."""
     return isinstance(event, (BaroHeight, GnssHeight, RangeHeight)) or (
-        isinstance(event, Rejected) and event.sensor == "range")
+        isinstance(event, Rejected) and event.sensor == RANGE_STREAM)

@@ -20,6 +20,7 @@ from ..channel import EpochInputs, Model
 from ..config import Config
 from ..epochs import EpochBuilder, EpochStart
 from ..report import CHANNEL_NAMES, AlarmEvent, ChannelReport, EpochReport
+from ..sensors import INPUT, RANGE_STREAM
 from ..samples import (
     AutopilotHeight,
     BaroHeight,
@@ -120,7 +121,7 @@ class Monitor:
             self._on_reboot(s)
             return []
         elif isinstance(s, Rejected):
-            if s.t_us is not None and s.sensor == "range":
+            if s.t_us is not None and s.sensor == RANGE_STREAM:
                 self.logic.on_range_refused(s)
         elif isinstance(s, ReferenceSet):
             if s.kind == "baro":
@@ -137,7 +138,7 @@ class Monitor:
                 self.bank.start(ep.t_us, ep.baro_m, self._start_baro_bias_m2())
                 self.logic.start(ep.t_us, self.boot)
                 if self.input is None:
-                    self.input = SourceTracker("input", ep.t_us, self.boot)
+                    self.input = SourceTracker(INPUT, ep.t_us, self.boot)
                 self.counters["starts"] += 1
                 continue
             out.append(self._epoch(ep))
@@ -172,7 +173,7 @@ class Monitor:
 
     def _input_state(self, t_us: int, d) -> Optional[AlarmEvent]:
         if self.input is None:
-            self.input = SourceTracker("input", t_us, self.boot)
+            self.input = SourceTracker(INPUT, t_us, self.boot)
         if self._link_lost:
             return None
         if self._rates_checked_us is not None and t_us - self._rates_checked_us < 1_000_000:
@@ -231,7 +232,7 @@ class Monitor:
                 ia / math.sqrt(sa) if sa == sa else math.nan,
             ))
         sources = dict(d.sources)
-        sources["input"] = self.input.status()
+        sources[INPUT] = self.input.status()
         vpl = self.k_vpl * d.sigma_fused_m if d.sigma_fused_m == d.sigma_fused_m else math.inf
         # A source that is merely unavailable (no data) does not degrade the
         # overall state by itself: the protection level says whether what is
@@ -240,7 +241,7 @@ class Monitor:
         if "alarm" in states:
             overall = "alarm"
         elif (not (vpl <= self.mcfg.alert_limit_m) or d.height_fused_m != d.height_fused_m
-              or sources["input"].state == "unavailable"):
+              or sources[INPUT].state == "unavailable"):
             overall = "unavailable"
         elif "caution" in states:
             overall = "caution"

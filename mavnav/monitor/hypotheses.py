@@ -62,7 +62,7 @@ from .verdict import SENSOR_SOURCES, Verdict, live_hypotheses
 from .window import InnovationWindow
 
 AUX = ((GNSS, "gnss"), (RNG, "rangefinder"))
-LABEL = {"gnss": "GNSS", "rangefinder": "rangefinder", "baro_ins": "baro+INS"}
+LABEL = {s: s.word for s in SENSOR_SOURCES}  # GNSS, rangefinder, baro+INS
 CHANNEL_OF = {"gnss": GNSS, "rangefinder": RNG, "baro_ins": BARO}
 REFUSAL_KINDS = ("out_of_range", "invalid_status", "stuck", "impossible")
 

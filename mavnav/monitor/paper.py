@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import sensors
 from ..bank import BARO, GNSS, RNG, ChannelBank
 from ..channel import EpochInputs
 from ..config import Config
@@ -37,7 +38,7 @@ class PaperLogic:
 
     def start(self, t_us: int, boot: int) -> None:
         self.t0_us = t_us
-        self.trackers = {s: SourceTracker(s, t_us, boot) for s in ("gnss", "rangefinder", "baro_ins")}
+        self.trackers = {s: SourceTracker(s, t_us, boot) for s in sensors.SENSOR_SOURCES}
         self.last_baro_us = t_us
 
     def pre(self, ep: EpochInputs) -> EpochInputs:
@@ -66,8 +67,8 @@ class PaperLogic:
         used = (pass1, pass2, True)
         pairs = pair_reports(bank, avail, (self.m.delta_gnss_m, self.m.delta_gnss_m, self.m.delta_ra_m))
         events = []
-        for c, name, ok, d, delta in ((GNSS, "gnss", pass1, d1, self.m.delta_gnss_m),
-                                      (RNG, "rangefinder", pass2, d2, self.m.delta_ra_m)):
+        for c, name, ok, d, delta in ((GNSS, sensors.GNSS, pass1, d1, self.m.delta_gnss_m),
+                                      (RNG, sensors.RANGEFINDER, pass2, d2, self.m.delta_ra_m)):
             tr = self.trackers[name]
             if not avail[c]:
                 ev = tr.set("unavailable", t, "no recent data")

@@ -16,9 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal, Optional
 
-HYPOTHESES = ("gnss", "rangefinder", "baro", "ins")
-REPORT_SOURCE = {"gnss": "gnss", "rangefinder": "rangefinder", "baro": "baro_ins", "ins": "baro_ins"}
-SENSOR_SOURCES = ("gnss", "rangefinder", "baro_ins")
+from ..sensors import HYPOTHESES, INS, REPORT_SOURCE, SENSOR_SOURCES  # noqa: F401 (re-exported)
 
 Level = Literal["pass", "suspect", "fail"]
 
@@ -58,7 +56,7 @@ def live_hypotheses(excluded) -> frozenset:
     """The hypotheses still in play with these report sources excluded.
     Excluding ``baro_ins`` takes the baro out; the INS still drives every
     channel, so it stays a hypothesis."""
-    return frozenset(h for h in HYPOTHESES if h == "ins" or REPORT_SOURCE[h] not in excluded)
+    return frozenset(h for h in HYPOTHESES if h is INS or REPORT_SOURCE[h] not in excluded)
 
 
 def report_sources(hyps) -> frozenset:

@@ -30,7 +30,7 @@ inject``. Per kind, on samples:
   ``rng_out_of_range``: readings beyond the sensor's maximum;
   ``rng_dropout``: readings flagged invalid (or none, ``silent``). A reading
   outside the sensor's limits becomes the same refusal the source would
-  have made (:class:`~mavnav.samples.Rejected`, ``sensor="range"``).
+  have made (:class:`~mavnav.samples.Rejected`, ``sensor=RANGE_STREAM``).
 * ``rate_drop``: per stream, one sample in ``round(1/magnitude)`` kept.
 * ``link_loss``: nothing in the window; ``LinkLost`` at its first sample and
   ``LinkRecovered`` at the first after it.
@@ -58,6 +58,7 @@ from ..samples import (
     Rejected,
     SpecificForceUp,
 )
+from ..sensors import AUTOPILOT_STREAM, BARO_STREAM, GNSS_STREAM, IMU_STREAM, RANGE_STREAM
 from .scenario import Fault
 
 
@@ -104,8 +105,8 @@ class _State:
         self.modified = 0
 
 
-_KIND = {SpecificForceUp: "imu", BaroHeight: "baro", GnssHeight: "gnss", RangeHeight: "range",
-         AutopilotHeight: "autopilot"}
+_KIND = {SpecificForceUp: IMU_STREAM, BaroHeight: BARO_STREAM, GnssHeight: GNSS_STREAM, RangeHeight: RANGE_STREAM,
+         AutopilotHeight: AUTOPILOT_STREAM}
 
 
 class SampleFaults:
@@ -210,26 +211,26 @@ class SampleFaults:
                 return s
             st.dropped += 1
             return None
-        if kind == "gnss" and k.startswith("gnss_"):
+        if kind == GNSS_STREAM and k.startswith("gnss_"):
             if k == "gnss_dropout":
                 st.dropped += 1
                 return None
             dh = height_error_m(f, t_s, st.rng)
             st.modified += 1
             return dataclasses.replace(s, height_ref_m=s.height_ref_m + dh, alt_m=s.alt_m + dh)
-        if kind == "baro" and k.startswith("baro_"):
+        if kind == BARO_STREAM and k.startswith("baro_"):
             st.modified += 1
             if k == "baro_freeze":
-                held = st.held.setdefault("baro", self._last.get("baro", s))
+                held = st.held.setdefault(BARO_STREAM, self._last.get(BARO_STREAM, s))
                 return dataclasses.replace(s, height_ref_m=held.height_ref_m, pressure_pa=held.pressure_pa)
             dh = height_error_m(f, t_s, st.rng)
             p_ref = s.pressure_pa / pressure_at_height_pa(s.height_ref_m, 1.0)
             return dataclasses.replace(s, height_ref_m=s.height_ref_m + dh,
                                        pressure_pa=pressure_at_height_pa(s.height_ref_m + dh, p_ref))
-        if kind == "imu" and k == "accel_bias_step":
+        if kind == IMU_STREAM and k == "accel_bias_step":
             st.modified += 1
             return dataclasses.replace(s, f_up_mps2=s.f_up_mps2 + height_error_m(f, t_s))
-        if kind == "range" and k.startswith("rng_"):
+        if kind == RANGE_STREAM and k.startswith("rng_"):
             return self._range(st, s)
         return s
 
@@ -242,10 +243,10 @@ class SampleFaults:
             if f.effective_mode == "silent":
                 return None
             return Rejected(s.recv_s, "invalid_quality", f"{s.source} reading flagged invalid (injected)",
-                            s.t_us, s.boot, sensor="range")
+                            s.t_us, s.boot, sensor=RANGE_STREAM)
         if k == "rng_stuck":
             if f.magnitude is None:
-                held = st.held.setdefault("range", self._last.get("range", s))
+                held = st.held.setdefault(RANGE_STREAM, self._last.get(RANGE_STREAM, s))
                 reading = held.range_m
                 cos_t = held.height_agl_m / held.range_m if held.range_m > 0 else 1.0
             else:
@@ -262,7 +263,7 @@ class SampleFaults:
         hi = s.max_m if s.max_m == s.max_m else math.inf
         if not lo <= reading <= hi:
             return Rejected(s.recv_s, "out_of_range", f"{s.source} {reading:.3f} m outside [{lo:g}, {hi:g}] m",
-                            s.t_us, s.boot, sensor="range")
+                            s.t_us, s.boot, sensor=RANGE_STREAM)
         return dataclasses.replace(s, range_m=reading, height_agl_m=reading * cos_t)
 
 

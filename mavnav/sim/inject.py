@@ -22,8 +22,10 @@ its own ``time_boot_ms``, or its own ``time_usec`` when that is within 1 s of
 the clock (zero and Unix-looking values above 1e14 us are ignored: GNSS and
 old ArduPilot IMU stamps are not always on the boot clock), else the latest
 clock value before it. The clock running backwards by more than
-``max(1 s, min(10 s, half its value))`` is a reboot (``boot`` counts from 0);
-smaller steps back are jitter between message types (:func:`reboot_jump_s`). A fault
+``ingest.reboot_jump_s`` (2 s) is a reboot (``boot`` counts from 0): the
+normaliser's rule, :func:`mavnav.ingest.clock.is_reboot` (one message decides
+here; the normaliser waits for several to confirm). Smaller steps back are
+jitter between message types or a step of the vehicle clock. A fault
 applies in the boot where its onset is first reached (or the ``boot`` it
 names), to the vehicle's system only, except ``link_loss`` and ``reboot``,
 which remove every record in the window (all systems, junk included).
@@ -39,11 +41,13 @@ import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mav2
 
 from ..atmosphere import P0_PA, height_from_pressure_m, pressure_at_height_pa
+from ..config import REBOOT_JUMP_S
 from ..constants import G0_MPS2
 from ..errors import InputError
 from ..frames import down_row_from_euler
 from ..ingest import wire
-from ..ingest.normaliser import MAV_AUTOPILOT_INVALID, MAV_TYPE_GCS
+from ..ingest.clock import is_reboot
+from ..ingest.systems import MAV_AUTOPILOT_INVALID, MAV_TYPE_GCS
 from .effects import height_error_m, keeps, out_of_range_reading_m, spikes
 from .faults import describe_fault
 from .scenario import Fault
@@ -270,19 +274,12 @@ def _applies_to(fault: Fault, msgid: int) -> bool:
     return False
 
 
-def reboot_jump_s(t_s: float) -> float:
-    """How far back the clock must step at vehicle time ``t_s`` to be a reboot:
-    ``max(1 s, min(10 s, t_s / 2))``; smaller steps back are jitter between
-    message types. (One message decides: the live clock, with
-    ``ingest.reboot_jump_s``, waits for several to confirm.)"""
-    return max(1.0, min(10.0, 0.5 * t_s))
-
-
 class _Timeline:
     """The vehicle clock as the injector follows it (see the module docstring)."""
 
-    def __init__(self, autopilot_compid: Optional[int]):
+    def __init__(self, autopilot_compid: Optional[int], reboot_jump_s: float = REBOOT_JUMP_S):
         self.compid = autopilot_compid
+        self.reboot_jump_s = reboot_jump_s
         self.boot = 0
         self.last_vt: Optional[float] = None
         self.have_ms_clock = False
@@ -297,7 +294,7 @@ class _Timeline:
         clock_msg = rec.compid == self.compid and rec.msgid not in GNSS_IDS
         if clock_msg and (is_ms or not self.have_ms_clock):
             # the autopilot's time_boot_ms: drives vehicle time and reboot detection
-            if self.last_vt is not None and self.last_vt - own_vt > reboot_jump_s(self.last_vt):
+            if self.last_vt is not None and is_reboot(self.last_vt, own_vt, self.reboot_jump_s):
                 self.boot += 1
             self.last_vt = vt = own_vt
             self.have_ms_clock = self.have_ms_clock or is_ms

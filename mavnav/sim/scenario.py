@@ -33,6 +33,7 @@ from ..config import (
 )
 from ..constants import G0_MPS2
 from ..errors import ConfigError
+from ..sensors import BARO_INS, GNSS, INPUT, RANGEFINDER, Sensor
 
 
 class _Section(BaseModel):
@@ -315,22 +316,22 @@ FaultKind = Literal[
     "reboot",
 ]
 
-FAULT_SOURCE: Dict[str, str] = {
-    "gnss_step": "gnss",
-    "gnss_ramp": "gnss",
-    "gnss_dropout": "gnss",
-    "gnss_noise": "gnss",
-    "rng_dropout": "rangefinder",
-    "rng_stuck": "rangefinder",
-    "rng_spikes": "rangefinder",
-    "rng_out_of_range": "rangefinder",
-    "baro_step": "baro_ins",
-    "baro_ramp": "baro_ins",
-    "baro_freeze": "baro_ins",
-    "accel_bias_step": "baro_ins",
-    "rate_drop": "input",
-    "link_loss": "input",
-    "reboot": "input",
+FAULT_SOURCE: Dict[str, Sensor] = {
+    "gnss_step": GNSS,
+    "gnss_ramp": GNSS,
+    "gnss_dropout": GNSS,
+    "gnss_noise": GNSS,
+    "rng_dropout": RANGEFINDER,
+    "rng_stuck": RANGEFINDER,
+    "rng_spikes": RANGEFINDER,
+    "rng_out_of_range": RANGEFINDER,
+    "baro_step": BARO_INS,
+    "baro_ramp": BARO_INS,
+    "baro_freeze": BARO_INS,
+    "accel_bias_step": BARO_INS,
+    "rate_drop": INPUT,
+    "link_loss": INPUT,
+    "reboot": INPUT,
 }
 
 # What ``magnitude`` means for each kind (None: not used).

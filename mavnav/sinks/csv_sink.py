@@ -31,6 +31,7 @@ from typing import Optional
 
 from ..report import EpochReport, RunSummary
 from ..home_frame import home_moved_text
+from ..sensors import BARO_INS, GNSS, RANGEFINDER
 from ..samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceMoved
 from .base import Sink
 
@@ -64,9 +65,9 @@ def csv_row(r: EpochReport) -> list[str]:
         _f(ch[0].height_ref_m),
         _f(ch[1].height_ref_m),
         _f(ch[2].height_ref_m),
-        "1" if r.ok("gnss") else "0",
-        "1" if r.ok("rangefinder") else "0",
-        "1" if r.ok("baro_ins") else "0",
+        "1" if r.ok(GNSS) else "0",
+        "1" if r.ok(RANGEFINDER) else "0",
+        "1" if r.ok(BARO_INS) else "0",
         r.overall,
         str(r.boot),
         "",

@@ -37,6 +37,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from ..config import Config
 from ..errors import ConfigError
+from ..sensors import BARO, GNSS, IMU, RANGEFINDER
 
 log = logging.getLogger("mavnav.sinks.mavlink_out")
 
@@ -97,12 +98,12 @@ def needed_rates(cfg: Config, autopilot: Optional[int]) -> Tuple[RateRequest, ..
         return max(floor_hz, req.tta_margin * need[kind]) if kind else floor_hz
 
     return (
-        RateRequest(imu, _IDS[imu], rate(req.imu_rate_hz, "imu")),
-        RateRequest("ATTITUDE", _IDS["ATTITUDE"], rate(req.attitude_rate_hz, "imu")),
+        RateRequest(imu, _IDS[imu], rate(req.imu_rate_hz, IMU)),
+        RateRequest("ATTITUDE", _IDS["ATTITUDE"], rate(req.attitude_rate_hz, IMU)),
         RateRequest(_BARO_MESSAGES[ing.baro_instance], _IDS[_BARO_MESSAGES[ing.baro_instance]],
-                    rate(req.baro_rate_hz, "baro")),
-        RateRequest("GPS_RAW_INT", _IDS["GPS_RAW_INT"], rate(req.gnss_rate_hz, "gnss")),
-        RateRequest(rng, _IDS[rng], rate(req.range_rate_hz, "rangefinder")),
+                    rate(req.baro_rate_hz, BARO)),
+        RateRequest("GPS_RAW_INT", _IDS["GPS_RAW_INT"], rate(req.gnss_rate_hz, GNSS)),
+        RateRequest(rng, _IDS[rng], rate(req.range_rate_hz, RANGEFINDER)),
     )
 
 

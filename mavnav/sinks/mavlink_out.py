@@ -83,6 +83,7 @@ from ..config import Config
 from ..errors import ConfigError, InputError
 from ..home_frame import home_moved_text
 from ..report import CHANNEL_NAMES, PAIR_NAMES, AlarmEvent, EpochReport, RunSummary
+from ..sensors import BARO, GNSS, RANGEFINDER, SENSOR_SOURCES
 from ..samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceMoved, ReferenceSet
 from .base import Sink
 from .mavlink_commands import IntervalRequester, RateRequest, needed_rates
@@ -99,8 +100,8 @@ _MAX_READS_PER_POLL = 200
 INF = math.inf
 NAN = math.nan
 
-_CHANNEL_SHORT = {"gnss": "gnss", "rangefinder": "rng", "baro": "baro"}
-_SOURCE_SHORT = {"gnss": "gnss", "rangefinder": "rng", "baro_ins": "baro"}
+_CHANNEL_SHORT = {c: c.short for c in CHANNEL_NAMES}  # gnss, rng, baro
+_SOURCE_SHORT = {s: s.short for s in SENSOR_SOURCES}  # gnss, rng, baro
 _PAIR_SHORT = {"gnss-rng": "dH_gns_rng", "gnss-baro": "dH_gns_bar", "rng-baro": "dH_rng_bar"}
 
 #: NAMED_VALUE_FLOAT names (10 characters at most) with ``--emit-debug``.
@@ -424,7 +425,7 @@ class MavlinkOutSink(Sink):
     def _alt_ref(self) -> float:
         if self._point_msl is not None:
             return self._point_msl
-        for kind in ("gnss", "baro"):
+        for kind in (GNSS, BARO):
             v = self._alt_ref_msl.get(kind)
             if v is not None:
                 return float(v)
@@ -432,8 +433,8 @@ class MavlinkOutSink(Sink):
 
     def _altitude(self, r: EpochReport):
         h = r.height_fused_m
-        if r.ok("rangefinder"):
-            rng = r.channels[CHANNEL_NAMES.index("rangefinder")]
+        if r.ok(RANGEFINDER):
+            rng = r.channels[CHANNEL_NAMES.index(RANGEFINDER)]
             terrain = rng.height_ref_m if rng.available else NAN
             clearance = r.range_height_agl_m
         else:

@@ -62,6 +62,8 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from ..report import CHANNEL_NAMES, PAIR_NAMES, SOURCES, STATES
+from ..sensors import (AUTOPILOT_STREAM, BARO, BARO_INS, BARO_STREAM, GNSS, GNSS_STREAM, IMU_STREAM, INPUT,
+                       RANGE_STREAM, RANGEFINDER)
 
 TIMELINE = "vehicle_time"
 
@@ -70,9 +72,9 @@ Rgb = tuple[int, int, int]
 # Sensor / channel colours (tab10), shared by raw heights, channel estimates,
 # NIS and the source lanes of the same sensor.
 CHANNEL_COLOURS: dict[str, Rgb] = {
-    "gnss": (31, 119, 180),  # blue
-    "rangefinder": (148, 103, 189),  # purple
-    "baro": (255, 127, 14),  # orange
+    GNSS: (31, 119, 180),  # blue
+    RANGEFINDER: (148, 103, 189),  # purple
+    BARO: (255, 127, 14),  # orange
 }
 # Dark cyan: clear on the light theme's white and the dark theme's near-black,
 # and a hue no sensor uses. The sigma band is the same hue, thinner.
@@ -87,10 +89,10 @@ PAIR_COLOURS: dict[str, Rgb] = {
     "rng-baro": (140, 86, 75),  # brown
 }
 SOURCE_COLOURS: dict[str, Rgb] = {
-    "gnss": CHANNEL_COLOURS["gnss"],
-    "rangefinder": CHANNEL_COLOURS["rangefinder"],
-    "baro_ins": CHANNEL_COLOURS["baro"],
-    "input": (110, 110, 110),
+    GNSS: CHANNEL_COLOURS[GNSS],
+    RANGEFINDER: CHANNEL_COLOURS[RANGEFINDER],
+    BARO_INS: CHANNEL_COLOURS[BARO],
+    INPUT: (110, 110, 110),
 }
 STATE_COLOURS: dict[str, Rgb] = {
     "nominal": (44, 160, 44),  # green
@@ -111,23 +113,23 @@ STATE_LEVELS = {"nominal": "INFO", "caution": "WARN", "unavailable": "WARN", "al
 
 # Input kinds counted for the rate plot, by sample type name.
 RATE_KINDS: dict[str, str] = {
-    "SpecificForceUp": "imu",
-    "BaroHeight": "baro",
-    "GnssHeight": "gnss",
-    "RangeHeight": "range",
-    "AutopilotHeight": "autopilot",
+    "SpecificForceUp": IMU_STREAM,
+    "BaroHeight": BARO_STREAM,
+    "GnssHeight": GNSS_STREAM,
+    "RangeHeight": RANGE_STREAM,
+    "AutopilotHeight": AUTOPILOT_STREAM,
 }
 RATE_COLOURS: dict[str, Rgb] = {
-    "imu": (110, 110, 110),
-    "baro": CHANNEL_COLOURS["baro"],
-    "gnss": CHANNEL_COLOURS["gnss"],
-    "range": CHANNEL_COLOURS["rangefinder"],
-    "autopilot": AUTOPILOT_COLOUR,
+    IMU_STREAM: (110, 110, 110),
+    BARO_STREAM: CHANNEL_COLOURS[BARO],
+    GNSS_STREAM: CHANNEL_COLOURS[GNSS],
+    RANGE_STREAM: CHANNEL_COLOURS[RANGEFINDER],
+    AUTOPILOT_STREAM: AUTOPILOT_COLOUR,
 }
 RAW_ENTITY = {"BaroHeight": "heights/raw/baro", "GnssHeight": "heights/raw/gnss", "RangeHeight": "heights/raw/rangefinder"}
 READOUT = "pilot/readout"
-SENSOR_WORDS = {"gnss": "GNSS", "rangefinder": "rangefinder", "baro": "baro"}
-SOURCE_WORDS = {"gnss": "GNSS", "rangefinder": "rangefinder", "baro_ins": "baro+INS", "input": "telemetry"}
+SENSOR_WORDS = {c: c.word for c in CHANNEL_NAMES}  # GNSS, rangefinder, baro
+SOURCE_WORDS = {s: s.word for s in SOURCES}  # GNSS, rangefinder, baro+INS, telemetry
 
 
 def raw_entity(sensor: str, used: bool = True) -> str:
@@ -153,7 +155,7 @@ def series_styles() -> list[tuple[str, object]]:
     (one legend entry).
     """
     out: list[tuple[str, object]] = []
-    raw_names = {"baro": "baro (raw)", "gnss": "GNSS (raw)", "rangefinder": "rangefinder (raw, AGL)"}
+    raw_names = {BARO: "baro (raw)", GNSS: "GNSS (raw)", RANGEFINDER: "rangefinder (raw, AGL)"}
     for ch in CHANNEL_NAMES:
         colour = CHANNEL_COLOURS[ch]
         word = SENSOR_WORDS[ch]

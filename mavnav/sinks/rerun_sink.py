@@ -61,6 +61,7 @@ import rerun as rr
 
 from ..home_frame import home_moved_text
 from ..report import CHANNEL_NAMES, SOURCES, AlarmEvent, EpochReport, RunSummary
+from ..sensors import BARO, BARO_INS, GNSS, RANGEFINDER
 from ..samples import (
     AutopilotHeight,
     BaroHeight,
@@ -565,12 +566,12 @@ class RerunSink(Sink):
         if kind is not None:
             self._rates.observe(kind, ns, self._emit_rate)
         if isinstance(s, BaroHeight):
-            sensor = "baro" if s.instance in (0, 1) else f"baro{int(s.instance)}"
+            sensor = BARO if s.instance in (0, 1) else f"{BARO}{int(s.instance)}"
             self._raw_pending.append((s.boot, s.t_us, ns, sensor, s.height_ref_m))
         elif isinstance(s, GnssHeight):
-            self._raw_pending.append((s.boot, s.t_us, ns, "gnss", s.height_ref_m))
+            self._raw_pending.append((s.boot, s.t_us, ns, GNSS, s.height_ref_m))
         elif isinstance(s, RangeHeight):
-            self._raw_pending.append((s.boot, s.t_us, ns, "rangefinder", s.height_agl_m))
+            self._raw_pending.append((s.boot, s.t_us, ns, RANGEFINDER, s.height_agl_m))
         elif isinstance(s, AutopilotHeight):
             w.scalars("heights/autopilot", ns, (s.height_ref_m,))
         self._check_targets()
@@ -587,7 +588,7 @@ class RerunSink(Sink):
             entity = bp.raw_entity(sensor, used)
             if sensor not in bp.CHANNEL_NAMES:  # another baro instance
                 word = f"{sensor} (raw)" if used else f"{sensor} (raw, not used)"
-                self._style(entity, rr.SeriesPoints(colors=[bp.CHANNEL_COLOURS["baro"]], names=[word]))
+                self._style(entity, rr.SeriesPoints(colors=[bp.CHANNEL_COLOURS[BARO]], names=[word]))
             self.writer.scalars(entity, ns, (h,))
         self._raw_pending = keep
 
@@ -735,7 +736,7 @@ def raw_used(sensor: str, r: EpochReport) -> bool:
     refused it, or it came too late). Otherwise (the baro of a usable
     baro+INS, a source still unavailable) it is shown as used.
     """
-    source = "baro_ins" if sensor.startswith("baro") else sensor
+    source = BARO_INS if sensor.startswith(BARO) else sensor
     st = r.sources.get(source)
     if st is None:
         return True

@@ -60,6 +60,7 @@ from ...samples import (
     Rejected,
     SpecificForceUp,
 )
+from ...sensors import AUTOPILOT_STREAM, BARO_STREAM, GNSS_STREAM, IMU_STREAM, RANGE_STREAM
 from ..stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
 from ..vehicle_class import not_applicable_reason, notice_text
 from .head import read_head
@@ -71,7 +72,7 @@ ULOG_MAGIC = b"ULog\x01\x12\x35"
 
 # merge order at equal times
 _IMU, _BARO, _GNSS, _RANGE, _RANGE_REJ, _AP, _IMU_REJ = range(7)
-_KIND = {_IMU: "imu", _BARO: "baro", _GNSS: "gnss", _RANGE: "range", _AP: "autopilot"}  # samples, not events
+_KIND = {_IMU: IMU_STREAM, _BARO: BARO_STREAM, _GNSS: GNSS_STREAM, _RANGE: RANGE_STREAM, _AP: AUTOPILOT_STREAM}  # samples, not events
 _VERDICT = {1: "duplicate", 2: "out_of_order"}
 
 
@@ -368,16 +369,16 @@ class _Builder:
 
         def gnss(t, recv, c, i):
             sig, vz = c[4][i], c[7][i]
-            return "gnss", GnssHeight(t, recv, 0, c[2][i], c[3][i], sig if sig == sig else None, c[5][i], c[6][i],
+            return GNSS_STREAM, GnssHeight(t, recv, 0, c[2][i], c[3][i], sig if sig == sig else None, c[5][i], c[6][i],
                                       vz if vz == vz else None)
 
         return {
-            _IMU: lambda t, recv, c, i: ("imu", SpecificForceUp(t, recv, 0, c[2][i], imu_name)),
-            _BARO: lambda t, recv, c, i: ("baro", BaroHeight(t, recv, 0, c[2][i], c[3][i], baro_inst)),
+            _IMU: lambda t, recv, c, i: (IMU_STREAM, SpecificForceUp(t, recv, 0, c[2][i], imu_name)),
+            _BARO: lambda t, recv, c, i: (BARO_STREAM, BaroHeight(t, recv, 0, c[2][i], c[3][i], baro_inst)),
             _GNSS: gnss,
-            _RANGE: lambda t, recv, c, i: ("range", RangeHeight(t, recv, 0, c[2][i], c[3][i], rng_name, c[4][i],
+            _RANGE: lambda t, recv, c, i: (RANGE_STREAM, RangeHeight(t, recv, 0, c[2][i], c[3][i], rng_name, c[4][i],
                                                                 c[5][i])),
-            _AP: lambda t, recv, c, i: ("autopilot", AutopilotHeight(t, recv, 0, c[2][i], ap_name, c[3][i])),
+            _AP: lambda t, recv, c, i: (AUTOPILOT_STREAM, AutopilotHeight(t, recv, 0, c[2][i], ap_name, c[3][i])),
         }
 
     def _rejected(self, tag: int, c: list, i: int, t: int, recv: float) -> Rejected:
@@ -387,10 +388,10 @@ class _Builder:
             rng_name = rec.rangefinder.name if rec.rangefinder is not None else ""
             code, rng, lo, hi, cos_t = c[2][i], c[3][i], c[4][i], c[5][i], c[6][i]
             return Rejected(recv, _RANGE_WHY[code], _range_detail(rng_name, code, rng, lo, hi, cos_t, self.cfg),
-                            t, 0, sensor="range", value_m=rng, min_m=lo, max_m=hi)
+                            t, 0, sensor=RANGE_STREAM, value_m=rng, min_m=lo, max_m=hi)
         imu_name = rec.imu.name if rec.imu is not None else ""
         return Rejected(recv, "no_attitude", f"{imu_name}: no attitude within {self.cfg.attitude_max_age_s} s", t, 0,
-                        sensor="imu")
+                        sensor=IMU_STREAM)
 
 
 @njit(cache=True)
