@@ -396,6 +396,11 @@ class MonitorConfig(_Section):
     # forgetting time, and how far the data may sharpen (min) or dull (max) a
     # test against the filters' own covariance.
     residual_scale_tau_s: float = Field(60.0, gt=0)
+    # The Doppler window tests' scales forget slower: consecutive windows
+    # overlap, so 60 s holds only 6-12 independent values, and a 0.5 m/s baro
+    # ramp below the freeze level had taught the baro/Doppler test to widen
+    # from 1.3 to 2.6 times in 10 s (rrc_hover_cut20mm_1, 11 s to alert).
+    window_scale_tau_s: float = Field(300.0, gt=0)
     residual_scale_min: float = Field(0.5, gt=0, le=1)
     residual_scale_max: float = Field(5.0, ge=1)
     # the largest lag-one correlation the aux innovation scale believes (its

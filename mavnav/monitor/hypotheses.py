@@ -176,16 +176,16 @@ class HypothesisLogic:
         # GNSS altitude against its own Doppler velocity: the check, its measured
         # scale (it only widens), consecutive GNSS samples past the threshold
         self.doppler = DopplerCheck(m.doppler_window_s, m.doppler_max_gap_s)
-        self.scale["doppler"] = ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0)
+        self.scale["doppler"] = ResidualScale(m.window_scale_tau_s, 1.0, sc[2], max_phi=0.0)
         self.doppler_ex = Exceedance()
         # the baro against the same Doppler velocity (alerts, never clears)
         self.baro_doppler = DopplerCheck(m.baro_doppler_window_s, m.doppler_max_gap_s)
-        self.scale["baro_doppler"] = ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0)
+        self.scale["baro_doppler"] = ResidualScale(m.window_scale_tau_s, 1.0, sc[2], max_phi=0.0)
         self.baro_doppler_ex = Exceedance()
         # the INS's velocity change against the Doppler's: the check, its scale,
         # this epoch's Doppler sample (taken after the epoch's INS increment)
         self.ins_doppler = InsDopplerCheck(m.doppler_window_s, m.doppler_max_gap_s)
-        self.scale["ins_doppler"] = ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0)
+        self.scale["ins_doppler"] = ResidualScale(m.window_scale_tau_s, 1.0, sc[2], max_phi=0.0)
         self.insdop_ex = Exceedance()
         self.pending_doppler: Optional[tuple] = None
         self.ins_excluded = False  # the baro+INS source is out for its INS (not only its baro)
