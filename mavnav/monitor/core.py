@@ -44,9 +44,11 @@ class RateMeter:
         self._q: deque[int] = deque()
 
     def push(self, t_us: int) -> None:
-        self._q.append(t_us)
-        while self._q and self._q[0] <= t_us - _RATE_WINDOW_US:
-            self._q.popleft()
+        q = self._q
+        q.append(t_us)
+        limit = t_us - _RATE_WINDOW_US
+        while q and q[0] <= limit:
+            q.popleft()
 
     def rate_hz(self, now_us: int) -> float:
         """Rate while the input is flowing; 0 when it has gone silent (a gap
