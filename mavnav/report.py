@@ -18,6 +18,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal, Optional
 
+from .fastinit import fast_frozen_init
+
 State = Literal["nominal", "caution", "unavailable", "alarm"]
 STATES: tuple[State, ...] = ("nominal", "caution", "unavailable", "alarm")
 
@@ -107,6 +109,10 @@ class AlarmEvent:
     @property
     def t_s(self) -> float:
         return self.t_us * 1e-6
+
+
+# built per epoch: the cheaper __init__ of mavnav.fastinit (same fields, same defaults)
+fast_frozen_init(ChannelReport, PairReport, SourceStatus, EpochReport, AlarmEvent)
 
 
 @dataclass
