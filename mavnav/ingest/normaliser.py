@@ -585,7 +585,20 @@ class Normaliser:
             self._reject(recv_s, "impossible", f"{name} acceleration beyond 50 g")
             return
         if usec:
-            self._on_time(self.time.usec((name, compid), t_raw, recv_s, name, "imu", (fb, name)))
+            key = (name, compid)
+            tb = self.time
+            if not tb._cands:
+                # TimeBase.usec and .stream, then _on_time, inline: the hot path (no candidate
+                # time base open, the stream's clock known): Placed, then SETTLED
+                off = tb.streams.offsets.get(key)
+                if off is not None:
+                    t = tb.clock.boot_from_usec(t_raw, recv_s)
+                    if t is not None:
+                        self._imu_at((fb, name), t - off, recv_s)
+                        if self.att.pending:
+                            self._resolve_attitude()
+                        return
+            self._on_time(tb.usec(key, t_raw, recv_s, name, "imu", (fb, name)))
         else:
             self._on_time(self.time.boot_ms(t_raw, recv_s, compid, "imu", (fb, name)))
 

@@ -68,6 +68,7 @@ REFUSAL_KINDS = ("out_of_range", "invalid_status", "stuck", "impossible")
 _LEVEL_IMPLICATES = {name: frozenset(("baro", name)) for _, name in AUX}
 _LEVEL_TEST = {name: f"baro level against {LABEL[name]}" for _, name in AUX}
 _KINK_KEYS = {name: (f"{name}-ins", f"{name}-baro") for _, name in AUX}
+_DISPLAY_TEST = {"gnss": "gnss innovation", "rangefinder": "rangefinder innovation", "baro_ins": "baro/INS"}
 _ONLY = {name: frozenset((name,)) for _, name in AUX}
 _WITH_BARO = {name: frozenset((name, "baro")) for _, name in AUX}
 _WITH_BARO_INS = {name: frozenset((name, "baro", "ins")) for _, name in AUX}
@@ -118,6 +119,7 @@ class HypothesisLogic:
         self.kink_margin = chi2_gate(m.kink_isolation_prob)
         self.t0_us = 0
         self._h_cache: dict[int, float] = {}
+        self._h_last: dict[str, tuple] = {}  # stream -> (its interval when last asked, h)
 
     # ------------------------------------------------------------------ state
 
@@ -212,6 +214,15 @@ class HypothesisLogic:
 
     def _h(self, name: str) -> float:
         """CUSUM threshold for a stream at its own rate (cached per 0.5 Hz)."""
+        iv = self.rates[name].interval_s
+        last = self._h_last.get(name)
+        if last is not None and last[0] == iv:  # the same interval as last asked: the same h
+            return last[1]
+        h = self._h_at_rate(name)
+        self._h_last[name] = (iv, h)
+        return h
+
+    def _h_at_rate(self, name: str) -> float:
         key = int(round(self.rates[name].hz * 2))
         h = self._h_cache.get(key)
         if h is None:
@@ -963,7 +974,7 @@ class HypothesisLogic:
         return j.sources if not j.enters_output else frozenset()
 
     def _display_stat(self, name: str, verdicts) -> tuple[float, float]:
-        test = {"gnss": "gnss innovation", "rangefinder": "rangefinder innovation", "baro_ins": "baro/INS"}[name]
+        test = _DISPLAY_TEST[name]
         for v in verdicts:
             if v.test == test:
                 return v.stat, v.threshold
