@@ -594,7 +594,11 @@ class Normaliser:
                 if off is not None:
                     t = tb.clock.boot_from_usec(t_raw, recv_s)
                     if t is not None:
-                        self._imu_at((fb, name), t - off, recv_s)
+                        if name == self.imu_sel.chosen:  # _imu_at, inline: the source is chosen
+                            if self._imu_selected(ImuItem(t - off, recv_s, self.clock.boot, fb, name)):
+                                return  # the attitude waits were resolved just now: SETTLED finds nothing new
+                        else:
+                            self._imu_at((fb, name), t - off, recv_s)
                         if self.att.pending:
                             self._resolve_attitude()
                         return
@@ -615,12 +619,14 @@ class Normaliser:
         for it in sel.offer(name, item):
             self._imu_selected(it)
 
-    def _imu_selected(self, item: ImuItem) -> None:
+    def _imu_selected(self, item: ImuItem) -> bool:
+        """Admitted, the sample waits for its attitude and the waits are resolved (True)."""
         self.stats.imu_source = self.imu_sel.chosen
         if not self._admit("imu", item.t_us, item.recv_s, item.boot):
-            return
+            return False
         self.att.pending.append((item.t_us, item))
         self._resolve_attitude()
+        return True
 
     def _resolve_attitude(self, flush: bool = False) -> None:
         att = self.att
