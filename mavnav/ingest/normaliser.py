@@ -117,7 +117,8 @@ from ..samples import (
 from . import wire
 from .attitude import AttitudeInterpolator
 from .heightref import GNSS_FIXED, BaroItem, GnssItem, HeightReferences
-from .timebase import SETTLED, ClockStepped, NewBoot, Placed, TimeBase
+from .clock import HOLD
+from .timebase import BEHIND_US, SETTLED, ClockStepped, NewBoot, Placed, TimeBase
 from .stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
 from .streams import KindGuard, SourceSelector
 from .vehicle_class import is_height_input, not_applicable_reason, notice_text
@@ -493,6 +494,23 @@ class Normaliser:
             else:  # Refused
                 self._reject(step.recv_s, step.kind, step.detail, step.t_us)
 
+    def _boot_ms(self, t_us: int, recv_s: float, compid: int, what: str, f) -> None:
+        """``self._on_time(self.time.boot_ms(t_us, recv_s, compid, what, f))``, with the hot path of
+        :meth:`TimeBase.boot_ms` inline (the autopilot's clock, no candidate time
+        base open, the time accepted): its Placed, then SETTLED, acted on without
+        the steps."""
+        tb = self.time
+        if compid == tb.ap_compid and not tb._cands:
+            clock = tb.clock
+            t = t_us + clock.step_us
+            if clock.classify(t, recv_s, BEHIND_US) != HOLD:
+                clock.accept(t, recv_s)
+                self._placed[what](f, t, recv_s)
+                if self.att.pending:
+                    self._resolve_attitude()
+                return
+        self._on_time(tb.boot_ms(t_us, recv_s, compid, what, f))
+
     def _flush_streams(self) -> None:
         self._on_time(self.time.flush())
 
@@ -523,7 +541,7 @@ class Normaliser:
         self._emit(Reboot(t_us=t_us, recv_s=recv_s, boot=boot, last_t_us=last if last is not None else 0))
 
     def _system_time(self, f, recv_s, compid) -> None:
-        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "system_time", f))
+        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "system_time", f)
 
     def _system_time_at(self, f, t_us, recv_s) -> None:
         self.clock.set_unix_offset(f["time_unix_usec"], t_us)
@@ -535,7 +553,7 @@ class Normaliser:
             self._reject(recv_s, "nan", "ATTITUDE with a non-finite angle")
             return
         q = quat_from_euler(f["roll"], f["pitch"], f["yaw"])
-        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "attitude", q))
+        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "attitude", q)
 
     def _attitude_quaternion(self, f, recv_s, compid) -> None:
         q = (f["q1"], f["q2"], f["q3"], f["q4"])
@@ -547,7 +565,7 @@ class Normaliser:
             self._reject(recv_s, "impossible", f"ATTITUDE_QUATERNION norm {n:.3g}")
             return
         q = tuple(c / n for c in q)
-        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "attitude", q))
+        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "attitude", q)
 
     def _attitude_at(self, q, t_us, recv_s) -> None:
         self.att.add(t_us, q)
@@ -604,7 +622,7 @@ class Normaliser:
                         return
             self._on_time(tb.usec(key, t_raw, recv_s, name, "imu", (fb, name)))
         else:
-            self._on_time(self.time.boot_ms(t_raw, recv_s, compid, "imu", (fb, name)))
+            self._boot_ms(t_raw, recv_s, compid, "imu", (fb, name))
 
     def _imu_at(self, payload, t_us, recv_s) -> None:
         fb, name = payload
@@ -658,7 +676,7 @@ class Normaliser:
         if not 0.0 < p_pa < MAX_PRESSURE_PA:
             self._reject(recv_s, "impossible", f"static pressure {p_pa:.6g} Pa")
             return
-        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "pressure", p_pa))
+        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "pressure", p_pa)
 
     def _pressure_at(self, p_pa, t_us, recv_s) -> None:
         self._last_pressure_pa = p_pa
@@ -716,7 +734,7 @@ class Normaliser:
             self._range_selected(it)
         if f["signal_quality"] != DISTANCE_SENSOR_QUALITY_INVALID:
             self._range_last["DISTANCE_SENSOR"] = _RangeReading(recv_s, f["current_distance"] / 100.0)
-        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "distance_sensor", f))
+        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "distance_sensor", f)
 
     def _distance_sensor_at(self, f, t_us, recv_s) -> None:
         item = RangeItem(t_us, recv_s, self.clock.boot, "DISTANCE_SENSOR", f)
@@ -800,7 +818,7 @@ class Normaliser:
     def _global_position_int(self, f, recv_s, compid) -> None:
         for it in self._noted(self.ap_sel, "GLOBAL_POSITION_INT"):
             self._ap_selected(it)
-        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "global_position_int", f))
+        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "global_position_int", f)
 
     def _global_position_int_at(self, f, t_us, recv_s) -> None:
         rel_m = f["relative_alt"] / 1000.0  # mm above home
@@ -824,7 +842,7 @@ class Normaliser:
             return
         for it in self._noted(self.ap_sel, "LOCAL_POSITION_NED"):
             self._ap_selected(it)
-        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "local_position_ned", f))
+        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "local_position_ned", f)
 
     def _local_position_ned_at(self, f, t_us, recv_s) -> None:
         up_m = -f["z"]  # z is down, m, above the EKF origin
