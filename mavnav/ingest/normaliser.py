@@ -498,7 +498,8 @@ class Normaliser:
         """``self._on_time(self.time.boot_ms(t_us, recv_s, compid, what, f))``, with the hot path of
         :meth:`TimeBase.boot_ms` inline (the autopilot's clock, no candidate time
         base open, the time accepted): its Placed, then SETTLED, acted on without
-        the steps."""
+        the steps. ``tests/test_ingest_inline.py`` checks it against
+        :meth:`_boot_ms_reference`."""
         tb = self.time
         if compid == tb.ap_compid and not tb._cands:
             clock = tb.clock
@@ -510,6 +511,9 @@ class Normaliser:
                     self._resolve_attitude()
                 return
         self._on_time(tb.boot_ms(t_us, recv_s, compid, what, f))
+
+    def _boot_ms_reference(self, t_us: int, recv_s: float, compid: int, what: str, f) -> None:
+        self._on_time(self.time.boot_ms(t_us, recv_s, compid, what, f))
 
     def _flush_streams(self) -> None:
         self._on_time(self.time.flush())
@@ -603,26 +607,36 @@ class Normaliser:
             self._reject(recv_s, "impossible", f"{name} acceleration beyond 50 g")
             return
         if usec:
-            key = (name, compid)
-            tb = self.time
-            if not tb._cands:
-                # TimeBase.usec and .stream, then _on_time, inline: the hot path (no candidate
-                # time base open, the stream's clock known): Placed, then SETTLED
-                off = tb.streams.offsets.get(key)
-                if off is not None:
-                    t = tb.clock.boot_from_usec(t_raw, recv_s)
-                    if t is not None:
-                        if name == self.imu_sel.chosen:  # _imu_at, inline: the source is chosen
-                            if self._imu_selected(ImuItem(t - off, recv_s, self.clock.boot, fb, name)):
-                                return  # the attitude waits were resolved just now: SETTLED finds nothing new
-                        else:
-                            self._imu_at((fb, name), t - off, recv_s)
-                        if self.att.pending:
-                            self._resolve_attitude()
-                        return
-            self._on_time(tb.usec(key, t_raw, recv_s, name, "imu", (fb, name)))
+            self._imu_usec(fb, name, t_raw, recv_s, compid)
         else:
             self._boot_ms(t_raw, recv_s, compid, "imu", (fb, name))
+
+    def _imu_usec(self, fb, name, t_raw, recv_s, compid) -> None:
+        """:meth:`_imu_usec_reference` with the hot path inline (no candidate time
+        base open, the stream's clock known): TimeBase.usec and .stream, then
+        _on_time's Placed and SETTLED, without the steps; and for the chosen
+        source, no second attitude resolution after the one its admission ran
+        (nothing changes in between). ``tests/test_ingest_inline.py`` checks the
+        two give the same stream."""
+        key = (name, compid)
+        tb = self.time
+        if not tb._cands:
+            off = tb.streams.offsets.get(key)
+            if off is not None:
+                t = tb.clock.boot_from_usec(t_raw, recv_s)
+                if t is not None:
+                    if name == self.imu_sel.chosen:  # _imu_at, inline: the source is chosen
+                        if self._imu_selected(ImuItem(t - off, recv_s, self.clock.boot, fb, name)):
+                            return  # the attitude waits were resolved just now: SETTLED finds nothing new
+                    else:
+                        self._imu_at((fb, name), t - off, recv_s)
+                    if self.att.pending:
+                        self._resolve_attitude()
+                    return
+        self._on_time(tb.usec(key, t_raw, recv_s, name, "imu", (fb, name)))
+
+    def _imu_usec_reference(self, fb, name, t_raw, recv_s, compid) -> None:
+        self._on_time(self.time.usec((name, compid), t_raw, recv_s, name, "imu", (fb, name)))
 
     def _imu_at(self, payload, t_us, recv_s) -> None:
         fb, name = payload
