@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from itertools import combinations
 from typing import Literal, Optional
 
+from .fastinit import fast_frozen_init
 from .sensors import CHANNELS, SOURCES, Sensor  # noqa: F401 (SOURCES: re-exported)
 
 State = Literal["nominal", "caution", "unavailable", "alarm"]
@@ -110,6 +111,10 @@ class AlarmEvent:
     @property
     def t_s(self) -> float:
         return self.t_us * 1e-6
+
+
+# built per epoch: the cheaper __init__ of mavnav.fastinit (same fields, same defaults)
+fast_frozen_init(ChannelReport, PairReport, SourceStatus, EpochReport, AlarmEvent)
 
 
 @dataclass

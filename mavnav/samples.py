@@ -23,6 +23,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal, Optional, Union
 
+from .fastinit import fast_frozen_init
+
 # --------------------------------------------------------------------------
 # Measurements
 
@@ -206,3 +208,6 @@ class Notice:
 Measurement = Union[SpecificForceUp, BaroHeight, GnssHeight, RangeHeight, AutopilotHeight]
 Event = Union[ReferenceSet, ReferenceMoved, Reboot, Gap, LinkLost, LinkRecovered, Rejected, Notice]
 Sample = Union[Measurement, Event]
+
+# built per sample: the cheaper __init__ of mavnav.fastinit (same fields, same defaults)
+fast_frozen_init(SpecificForceUp, BaroHeight, GnssHeight, RangeHeight, AutopilotHeight, Rejected)

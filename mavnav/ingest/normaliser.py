@@ -119,8 +119,9 @@ from ..sensors import AUTOPILOT_STREAM, BARO_STREAM, GNSS_STREAM, IMU_STREAM, RA
 from . import wire
 from .attitude import AttitudeInterpolator
 from .heightref import GNSS_FIXED, BaroItem, GnssItem, HeightReferences
+from .clock import HOLD
 from .rangecheck import RangeChecks, Refusal
-from .timebase import SETTLED, ClockStepped, NewBoot, Placed, TimeBase
+from .timebase import BEHIND_US, SETTLED, ClockStepped, NewBoot, Placed, TimeBase
 from .stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
 from .streams import KindGuard, SourceSelector
 from .systems import MAV_AUTOPILOT_ARDUPILOTMEGA, OtherSystems, describe_system, is_vehicle_heartbeat
@@ -409,6 +410,27 @@ class Normaliser:
             else:  # Refused
                 self._reject(step.recv_s, step.kind, step.detail, step.t_us)
 
+    def _boot_ms(self, t_us: int, recv_s: float, compid: int, what: str, f) -> None:
+        """``self._on_time(self.time.boot_ms(t_us, recv_s, compid, what, f))``, with the hot path of
+        :meth:`TimeBase.boot_ms` inline (the autopilot's clock, no candidate time
+        base open, the time accepted): its Placed, then SETTLED, acted on without
+        the steps. ``tests/test_ingest_inline.py`` checks it against
+        :meth:`_boot_ms_reference`."""
+        tb = self.time
+        if compid == tb.ap_compid and not tb._cands:
+            clock = tb.clock
+            t = t_us + clock.step_us
+            if clock.classify(t, recv_s, BEHIND_US) != HOLD:
+                clock.accept(t, recv_s)
+                self._placed[what](f, t, recv_s)
+                if self.att.pending:
+                    self._resolve_attitude()
+                return
+        self._on_time(tb.boot_ms(t_us, recv_s, compid, what, f))
+
+    def _boot_ms_reference(self, t_us: int, recv_s: float, compid: int, what: str, f) -> None:
+        self._on_time(self.time.boot_ms(t_us, recv_s, compid, what, f))
+
     def _flush_streams(self) -> None:
         self._on_time(self.time.flush())
 
@@ -439,7 +461,7 @@ class Normaliser:
         self._emit(Reboot(t_us=t_us, recv_s=recv_s, boot=boot, last_t_us=last if last is not None else 0))
 
     def _system_time(self, f, recv_s, compid) -> None:
-        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "system_time", f))
+        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "system_time", f)
 
     def _system_time_at(self, f, t_us, recv_s) -> None:
         self.clock.set_unix_offset(f["time_unix_usec"], t_us)
@@ -451,7 +473,7 @@ class Normaliser:
             self._reject(recv_s, "nan", "ATTITUDE with a non-finite angle")
             return
         q = quat_from_euler(f["roll"], f["pitch"], f["yaw"])
-        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "attitude", q))
+        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "attitude", q)
 
     def _attitude_quaternion(self, f, recv_s, compid) -> None:
         q = (f["q1"], f["q2"], f["q3"], f["q4"])
@@ -463,7 +485,7 @@ class Normaliser:
             self._reject(recv_s, "impossible", f"ATTITUDE_QUATERNION norm {n:.3g}")
             return
         q = tuple(c / n for c in q)
-        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "attitude", q))
+        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "attitude", q)
 
     def _attitude_at(self, q, t_us, recv_s) -> None:
         self.att.add(t_us, q)
@@ -501,9 +523,36 @@ class Normaliser:
             self._reject(recv_s, "impossible", f"{name} acceleration beyond 50 g")
             return
         if usec:
-            self._on_time(self.time.usec((name, compid), t_raw, recv_s, name, "imu", (fb, name)))
+            self._imu_usec(fb, name, t_raw, recv_s, compid)
         else:
-            self._on_time(self.time.boot_ms(t_raw, recv_s, compid, "imu", (fb, name)))
+            self._boot_ms(t_raw, recv_s, compid, "imu", (fb, name))
+
+    def _imu_usec(self, fb, name, t_raw, recv_s, compid) -> None:
+        """:meth:`_imu_usec_reference` with the hot path inline (no candidate time
+        base open, the stream's clock known): TimeBase.usec and .stream, then
+        _on_time's Placed and SETTLED, without the steps; and for the chosen
+        source, no second attitude resolution after the one its admission ran
+        (nothing changes in between). ``tests/test_ingest_inline.py`` checks the
+        two give the same stream."""
+        key = (name, compid)
+        tb = self.time
+        if not tb._cands:
+            off = tb.streams.offsets.get(key)
+            if off is not None:
+                t = tb.clock.boot_from_usec(t_raw, recv_s)
+                if t is not None:
+                    if name == self.imu_sel.chosen:  # _imu_at, inline: the source is chosen
+                        if self._imu_selected(ImuItem(t - off, recv_s, self.clock.boot, fb, name)):
+                            return  # the attitude waits were resolved just now: SETTLED finds nothing new
+                    else:
+                        self._imu_at((fb, name), t - off, recv_s)
+                    if self.att.pending:
+                        self._resolve_attitude()
+                    return
+        self._on_time(tb.usec(key, t_raw, recv_s, name, "imu", (fb, name)))
+
+    def _imu_usec_reference(self, fb, name, t_raw, recv_s, compid) -> None:
+        self._on_time(self.time.usec((name, compid), t_raw, recv_s, name, "imu", (fb, name)))
 
     def _imu_at(self, payload, t_us, recv_s) -> None:
         fb, name = payload
@@ -518,12 +567,14 @@ class Normaliser:
         for it in sel.offer(name, item):
             self._imu_selected(it)
 
-    def _imu_selected(self, item: ImuItem) -> None:
+    def _imu_selected(self, item: ImuItem) -> bool:
+        """Admitted, the sample waits for its attitude and the waits are resolved (True)."""
         self.stats.imu_source = self.imu_sel.chosen
         if not self._admit(IMU_STREAM, item.t_us, item.recv_s, item.boot):
-            return
+            return False
         self.att.pending.append((item.t_us, item))
         self._resolve_attitude()
+        return True
 
     def _resolve_attitude(self, flush: bool = False) -> None:
         att = self.att
@@ -555,7 +606,7 @@ class Normaliser:
         if not 0.0 < p_pa < MAX_PRESSURE_PA:
             self._reject(recv_s, "impossible", f"static pressure {p_pa:.6g} Pa")
             return
-        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "pressure", p_pa))
+        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "pressure", p_pa)
 
     def _pressure_at(self, p_pa, t_us, recv_s) -> None:
         self.range_checks.stuck.pressure(p_pa)
@@ -608,7 +659,7 @@ class Normaliser:
         for it in self._noted(self.range_sel, "DISTANCE_SENSOR"):
             self._range_selected(it)
         self.range_checks.cross.note("DISTANCE_SENSOR", f, recv_s)
-        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "distance_sensor", f))
+        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "distance_sensor", f)
 
     def _distance_sensor_at(self, f, t_us, recv_s) -> None:
         item = RangeItem(t_us, recv_s, self.clock.boot, "DISTANCE_SENSOR", f)
@@ -651,7 +702,7 @@ class Normaliser:
     def _global_position_int(self, f, recv_s, compid) -> None:
         for it in self._noted(self.ap_sel, "GLOBAL_POSITION_INT"):
             self._ap_selected(it)
-        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "global_position_int", f))
+        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "global_position_int", f)
 
     def _global_position_int_at(self, f, t_us, recv_s) -> None:
         rel_m = f["relative_alt"] / 1000.0  # mm above home
@@ -675,7 +726,7 @@ class Normaliser:
             return
         for it in self._noted(self.ap_sel, "LOCAL_POSITION_NED"):
             self._ap_selected(it)
-        self._on_time(self.time.boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "local_position_ned", f))
+        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "local_position_ned", f)
 
     def _local_position_ned_at(self, f, t_us, recv_s) -> None:
         up_m = -f["z"]  # z is down, m, above the EKF origin

@@ -25,8 +25,10 @@ class Decision:
 def pair_reports(bank: ChannelBank, available, thresholds) -> tuple[PairReport, ...]:
     """Differences ``H_a - H_b`` of the channel pairs against their thresholds."""
     out = []
+    h = bank.x[:, 0].tolist()  # Python floats, as float() of each element
+    thresholds = thresholds.tolist() if isinstance(thresholds, np.ndarray) else thresholds
     for p, (a, b) in enumerate(PAIRS):
-        diff = float(bank.x[a, 0] - bank.x[b, 0])
+        diff = h[a] - h[b]
         thr = float(thresholds[p])
         valid = bool(available[a] and available[b])
         out.append(PairReport(name=PAIR_NAMES[p], diff_m=diff, threshold_m=thr,
@@ -38,10 +40,11 @@ def diff_sigmas(bank: ChannelBank, floor_var=(0.0, 0.0, 0.0)) -> np.ndarray:
     """sqrt(P_a + P_b - 2 P_ab) of the heights, for every pair; each channel's
     ``P_HH`` raised to at least ``floor_var[c]`` (its sensor's own variance)."""
     out = np.empty(len(PAIRS))
-    P, Pc = bank.P, bank.Pc
+    ph = bank.P[:, 0, 0].tolist()  # Python floats: the same arithmetic without numpy scalars
+    pc = bank.Pc[:, 0, 0].tolist()
     for p, (a, b) in enumerate(PAIRS):
-        pa, pb = P[a, 0, 0], P[b, 0, 0]
-        v = max(pa, floor_var[a]) + max(pb, floor_var[b]) - 2.0 * Pc[p, 0, 0]
+        pa, pb = ph[a], ph[b]
+        v = max(pa, floor_var[a]) + max(pb, floor_var[b]) - 2.0 * pc[p]
         out[p] = math.sqrt(max(v, 1e-12))
     return out
 

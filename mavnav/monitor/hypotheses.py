@@ -65,6 +65,19 @@ AUX = ((GNSS, "gnss"), (RNG, "rangefinder"))
 LABEL = {s: s.word for s in SENSOR_SOURCES}  # GNSS, rangefinder, baro+INS
 CHANNEL_OF = {"gnss": GNSS, "rangefinder": RNG, "baro_ins": BARO}
 REFUSAL_KINDS = ("out_of_range", "invalid_status", "stuck", "impossible")
+_LEVEL_IMPLICATES = {name: frozenset(("baro", name)) for _, name in AUX}
+_LEVEL_TEST = {name: f"baro level against {LABEL[name]}" for _, name in AUX}
+_KINK_KEYS = {name: (f"{name}-ins", f"{name}-baro") for _, name in AUX}
+_DISPLAY_TEST = {"gnss": "gnss innovation", "rangefinder": "rangefinder innovation", "baro_ins": "baro/INS"}
+_ONLY = {name: frozenset((name,)) for _, name in AUX}
+_WITH_BARO = {name: frozenset((name, "baro")) for _, name in AUX}
+_WITH_BARO_INS = {name: frozenset((name, "baro", "ins")) for _, name in AUX}
+_WITH_INS = {name: frozenset((name, "ins")) for _, name in AUX}
+
+
+def _last(q: deque, n: int) -> list:
+    """``list(q)[-n:]`` without copying the whole deque."""
+    return [q[i] for i in range(-min(n, len(q)), 0)]
 
 
 class _Rate:
@@ -106,6 +119,7 @@ class HypothesisLogic:
         self.kink_margin = chi2_gate(m.kink_isolation_prob)
         self.t0_us = 0
         self._h_cache: dict[int, float] = {}
+        self._h_last: dict[str, tuple] = {}  # stream -> (its interval when last asked, h)
 
     # ------------------------------------------------------------------ state
 
@@ -204,6 +218,15 @@ class HypothesisLogic:
 
     def _h(self, name: str) -> float:
         """CUSUM threshold for a stream at its own rate (cached per 0.5 Hz)."""
+        iv = self.rates[name].interval_s
+        last = self._h_last.get(name)
+        if last is not None and last[0] == iv:  # the same interval as last asked: the same h
+            return last[1]
+        h = self._h_at_rate(name)
+        self._h_last[name] = (iv, h)
+        return h
+
+    def _h_at_rate(self, name: str) -> float:
         key = int(round(self.rates[name].hz * 2))
         h = self._h_cache.get(key)
         if h is None:
@@ -487,11 +510,11 @@ class HypothesisLogic:
             while before and t - before[0][0] > 1e6 * max(1.0, 2 * m.baro_jump_confirm_s):
                 before.popleft()
             if reject and before:
-                ref = tuple(before)[-5:]
+                ref = tuple(_last(before, 5))
                 size = b - self._carried(ref, t)
                 self.jump = [t, size, sd, size, 0, ref]
             elif not reject:
-                old = [e for e in tuple(before)[-16:] if t - e[0] >= m.baro_jump_confirm_s * 1e6][-5:]
+                old = [e for e in _last(before, 16) if t - e[0] >= m.baro_jump_confirm_s * 1e6][-5:]
                 if old:
                     self.offset_scale.push(t, b - self._carried(old, t))
                 before.append((t, b, ins.pos_m, ins.vel_mps, float(self.bank.x[self._anchor(), 1])))
@@ -567,7 +590,7 @@ class HypothesisLogic:
         # between its samples, so its quiet innovations vouch for its sensor only
         # (with the baro out, a rangefinder pass had cleared a faulty INS and left
         # the GNSS to be blamed for it)
-        return frozenset((name,))
+        return _ONLY[name]
 
     def _aux_implicates(self, c: int, name: str) -> frozenset:
         """What an aux channel's innovations can mean. With the baro in the
@@ -576,8 +599,8 @@ class HypothesisLogic:
         channel's innovations too (without this, the INS/Doppler test's
         failures pinned INS faults on the GNSS)."""
         if self.bank.baro_on[c]:
-            return frozenset((name, "baro", "ins")) if self.ins_doubt else frozenset((name, "baro"))
-        return frozenset((name, "ins"))
+            return _WITH_BARO_INS[name] if self.ins_doubt else _WITH_BARO[name]
+        return _WITH_INS[name]
 
     def _sudden_now(self, name: str, t: int) -> Optional[tuple]:
         """The sudden jump noted for this stream, while the rejection window still holds it."""
@@ -613,7 +636,8 @@ class HypothesisLogic:
         stat = abs(e)
         if stat <= m.suspect_frac * thr:
             sc.push(t, e / sigma)  # frozen while the test leans towards a fault
-        txt = f"baro moved {e:+.2f} m against the INS over {D:.1f} s (threshold {thr:.2f} m)"
+        txt = (f"baro moved {e:+.2f} m against the INS over {D:.1f} s (threshold {thr:.2f} m)"
+               if stat > m.suspect_frac * thr or stat > thr else "")  # a pass carries no text
         if stat > thr:
             if self.ins_exceed_since is None:
                 self.ins_exceed_since = t
@@ -643,13 +667,17 @@ class HypothesisLogic:
             if not avail[c] or self._warm(name, t) or not bank.baro_on[c]:
                 self.level_since[c] = None
                 continue
-            x, P = bank.x[c], bank.P[c]
-            r = self.last_baro_m - (x[0] + x[2])
-            var = P[0, 0] + P[2, 2] + 2.0 * P[0, 2] + bank.model.sigma_bb_m ** 2 + self.baro_white_var
+            x = bank.x[c].tolist()  # Python floats: the same sums, without numpy scalars
+            P0, P2 = bank.P[c, 0].tolist(), bank.P[c, 2].tolist()
+            x0, x2, p00, p02, p22 = x[0], x[2], P0[0], P0[2], P2[2]
+            r = self.last_baro_m - (x0 + x2)
+            var = p00 + p22 + 2.0 * p02 + bank.model.sigma_bb_m ** 2 + self.baro_white_var
             thr = self.k_cmp * math.sqrt(var)
-            implicates = frozenset(("baro", name))
-            test = f"baro level against {LABEL[name]}"
-            txt = f"baro {r:+.2f} m from the {LABEL[name]} channel (threshold {thr:.2f} m)"
+            implicates = _LEVEL_IMPLICATES[name]
+            test = _LEVEL_TEST[name]
+            # the text only where a verdict carries it (a pass has none)
+            txt = (f"baro {r:+.2f} m from the {LABEL[name]} channel (threshold {thr:.2f} m)"
+                   if abs(r) > self.m.suspect_frac * thr or abs(r) > thr else "")
             if abs(r) > thr:
                 if self.level_since[c] is None:
                     self.level_since[c] = t
@@ -759,9 +787,10 @@ class HypothesisLogic:
             if raw is None:
                 continue
             x = raw[0] - pos
-            self.kink[f"{name}-ins"].push(ts, x)
+            k_ins, k_baro = _KINK_KEYS[name]
+            self.kink[k_ins].push(ts, x)
             if self.baro_minus_ins_m == self.baro_minus_ins_m:
-                self.kink[f"{name}-baro"].push(ts, x - self.baro_minus_ins_m)
+                self.kink[k_baro].push(ts, x - self.baro_minus_ins_m)
         if ts - self.kink_learned_s < m.kink_learn_interval_s or self.judgement.situation != "clear" or self.jump:
             return
         self.kink_learned_s = ts
@@ -950,7 +979,7 @@ class HypothesisLogic:
         return j.sources if not j.enters_output else frozenset()
 
     def _display_stat(self, name: str, verdicts) -> tuple[float, float]:
-        test = {"gnss": "gnss innovation", "rangefinder": "rangefinder innovation", "baro_ins": "baro/INS"}[name]
+        test = _DISPLAY_TEST[name]
         for v in verdicts:
             if v.test == test:
                 return v.stat, v.threshold

@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal, Optional
 
+from ..fastinit import fast_frozen_init
 from ..sensors import HYPOTHESES, INS, REPORT_SOURCE, SENSOR_SOURCES  # noqa: F401 (re-exported)
 
 Level = Literal["pass", "suspect", "fail"]
@@ -50,6 +51,9 @@ class Verdict:
         if self.sizes is not None and hyp in self.sizes:
             return self.sizes[hyp]
         return self.scale_m
+
+
+fast_frozen_init(Verdict)  # built per test per epoch: the cheaper __init__ of mavnav.fastinit
 
 
 def live_hypotheses(excluded) -> frozenset:
