@@ -614,20 +614,11 @@ class HypothesisLogic:
         if self._warm("baro_ins", t) or t - self.last_baro_us > self.stale_baro_us:
             return None
         m = self.m
-        model = self.bank.model
         implicates = frozenset(("baro", "ins"))
         rej = self.rejections["baro_ins"].rejected
-        jc = self.jump_confirmed
-        if jc is not None and t - jc[0] > self.rejections["baro_ins"].length_us:
-            jc = self.jump_confirmed = None
-        if self.f.innovation_gating and jc is not None and "baro_ins" not in self.excluded:
-            return Verdict("baro/INS", "fail", implicates, stat=jc[2], threshold=math.sqrt(self.baro_gate),
-                           text=f"baro stepped {jc[1]:+.2f} m against the INS ({jc[2]:.1f} sigma) and stayed",
-                           scale_m=abs(jc[1]))
-        if self.f.innovation_gating and self.jump is not None and "baro_ins" not in self.excluded:
-            return Verdict("baro/INS", "suspect", implicates, stat=abs(self.jump[1]) / self.jump[2],
-                           threshold=math.sqrt(self.baro_gate),
-                           text=f"baro jumped {self.jump[1]:+.2f} m against the INS; watching whether it stays")
+        v = self._jump_verdict(t, implicates)
+        if v is not None:
+            return v
         res = self._ins_residual()
         if res is None:
             return None
@@ -653,6 +644,23 @@ class HypothesisLogic:
         clear = (frozenset(("ins",)) if stat < m.clear_frac * thr and rej == 0 and "baro_ins" not in self.excluded
                  else frozenset())
         return Verdict("baro/INS", "pass", implicates, clear, stat, thr, scale_m=thr)  # V_s follows a slow error in part
+
+    def _jump_verdict(self, t: int, implicates: frozenset) -> Optional[Verdict]:
+        """A baro step that stayed (fail) or a jump being watched (suspect), if any."""
+        jc = self.jump_confirmed
+        if jc is not None and t - jc[0] > self.rejections["baro_ins"].length_us:
+            jc = self.jump_confirmed = None
+        if not self.f.innovation_gating or "baro_ins" in self.excluded:
+            return None
+        if jc is not None:
+            return Verdict("baro/INS", "fail", implicates, stat=jc[2], threshold=math.sqrt(self.baro_gate),
+                           text=f"baro stepped {jc[1]:+.2f} m against the INS ({jc[2]:.1f} sigma) and stayed",
+                           scale_m=abs(jc[1]))
+        if self.jump is not None:
+            return Verdict("baro/INS", "suspect", implicates, stat=abs(self.jump[1]) / self.jump[2],
+                           threshold=math.sqrt(self.baro_gate),
+                           text=f"baro jumped {self.jump[1]:+.2f} m against the INS; watching whether it stays")
+        return None
 
     def _level_verdicts(self, t: int) -> list[Verdict]:
         """The baro's level against each aux channel's ``H + dH`` (the channel's
