@@ -307,10 +307,7 @@ def _part2(path: str, rates: dict, faults=FAULTS, contenders=CONTENDERS) -> tupl
                 wrong = sorted({ev.source for ev in alarm_onsets(r["alarms"])
                                 if onset <= ev.t_s <= end + 2.0 and ev.source in SENSOR_SOURCES and ev.source != source})
                 alert = _alert_s(r, clean[m], onset, end, source, d)
-                # a wrong exclusion the unfaulted flight makes too (within 2 s) is the flight's, not the fault's
-                own = sorted({ev.source for ev in alarm_onsets(r["alarms"])
-                              if onset <= ev.t_s <= end + 2.0 and ev.source in wrong
-                              and not any(s_ == ev.source and abs(t_ - ev.t_s) <= 2.0 for s_, t_ in clean_on[m])})
+                own = wrong_by_fault(alarm_onsets(r["alarms"]), clean_on[m], wrong, onset, end)
                 row[m] = {"detected": d.detected, "tta_s": d.tta_s, "isolated": d.isolated, "alert_s": alert,
                           "blamed": list(d.first_sources), "wrong": wrong, "wrong_by_fault": own,
                           "hazard_s": _hazard_s(r, clean[m], onset, end)}
@@ -319,6 +316,16 @@ def _part2(path: str, rates: dict, faults=FAULTS, contenders=CONTENDERS) -> tupl
 
 
 CHANNEL_OF_SOURCE = {"gnss": 0, "rangefinder": 1, "baro_ins": 2}
+SAME_ALARM_S = 2.0  # an alarm onset this close to one of the unfaulted flight's is that flight's own
+
+
+def wrong_by_fault(onsets, clean_onsets, wrong, onset: float, end: float) -> list:
+    """The wrongly blamed sources whose alarm in the fault's window the
+    unfaulted flight does not also raise within SAME_ALARM_S: the fault's
+    doing, not the flight's own alarms falling inside the window."""
+    return sorted({ev.source for ev in onsets
+                   if onset <= ev.t_s <= end + 2.0 and ev.source in wrong
+                   and not any(s == ev.source and abs(t - ev.t_s) <= SAME_ALARM_S for s, t in clean_onsets)})
 
 
 def _alert_s(r: dict, clean: dict, onset: float, end: float, source: str, d) -> float:
