@@ -88,10 +88,12 @@ class InsBaroCheck:
         a1 = t[1] - s[1] - s[2] * D1
         a0 = s[1] - u[1] - u[2] * D0
         ins = a1 - r * a0 + (s[2] - u[2]) * D1
+        # a constant accelerometer bias da moves A1 - r A0 + (v_s - v_u) D1 by
+        # da (D1^2 / 2 - r D0^2 / 2 + D0 D1) = da D1 (D0 + D1) / 2 (da D^2 for equal windows)
         da, pdd = s[4], s[5]
-        ins -= 0.5 * da * (D1 * D1 + r * D0 * D0) + da * D0 * D1
+        k = 0.5 * (D1 * D1 - r * D0 * D0) + D0 * D1
+        ins -= da * k
         e = (t[3] - s[3]) - r * (s[3] - u[3]) - ins
-        k = 0.5 * (D1 * D1 + r * D0 * D0) + D0 * D1
         var = ((1.0 + (1.0 + r) ** 2 + r * r) * white_var_m2 + k * k * pdd
                + psd_m2ps3 * (D1 ** 3 + r * r * D0 ** 3) / 3.0 + psd_m2ps3 * D0 * D1 * D1
                + bias_rw_var_m2ps * (D1 + r * r * D0)
