@@ -95,7 +95,8 @@ def test_a_baro_step_that_stays_never_reaches_the_output_as_height(path, onset, 
     assert back, "the baro is readmitted while its step stays (every windowed test passes it)"
     t, h = np.asarray(faulty.t), np.asarray(faulty.h)
     h0 = np.interp(t, np.asarray(clean.t), np.asarray(clean.h))
-    offered = np.isin(np.asarray(faulty.state), ("nominal", "caution")) & np.isfinite(h)
-    during = offered & (t >= onset) & (t <= onset + length + 15.0)
-    assert during.any()
-    assert np.max(np.abs(h - h0)[during]) < 3.0  # never hazardous: the step is not height
+    # every fused height the monitor computes in and after the window, whatever its state (on dkla an
+    # earlier baro alarm of the flight's own has already put the protection level over the alert limit)
+    during = np.isfinite(h) & (t >= onset) & (t <= onset + length + 15.0)
+    assert during.sum() > 100
+    assert np.max(np.abs(h - h0)[during]) < 3.0  # the step is not height

@@ -21,10 +21,13 @@ class _Overall(Sink):
     def __init__(self):
         self.states = []
         self.reasons = set()
+        self.alone_with_gnss = 0  # epochs said to have the baro alone while the GNSS is in use
 
     def epoch(self, r):
         self.states.append(r.overall)
         self.reasons.add(r.sources["input"].reason)
+        if "baro and the INS alone" in r.sources["input"].reason and r.sources["gnss"].state in ("nominal", "caution"):
+            self.alone_with_gnss += 1
 
 
 def _fly(path, **monitor):
@@ -50,5 +53,10 @@ def test_the_baro_alone_makes_monitoring_degraded_and_says_why():
 
 @pytest.mark.slow
 def test_with_the_gnss_beside_the_baro_monitoring_is_not_degraded_by_it():
+    """dkla has no GNSS fix for its first 34 s: the rule applies there and
+    nowhere else (the input is judged once a second, so an epoch or two may
+    lag the GNSS's arrival)."""
     both = _fly(DKLA)
-    assert _share(both.states, "nominal") > 0.5
+    assert any("baro and the INS alone" in r for r in both.reasons)  # before the first fix
+    assert both.alone_with_gnss <= 0.01 * len(both.states)
+    assert _share(both.states, "nominal") > 0.1

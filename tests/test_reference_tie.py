@@ -39,15 +39,20 @@ class _Sigmas(Sink):
     def __init__(self):
         self.first = None
         self.vpl = []
+        self.alarmed = False
 
     def epoch(self, r):
         if self.first is None:
             self.first = {c.name: c.sigma_height_m for c in r.channels}
-        self.vpl.append(r.vpl_m)
+        if not self.alarmed:  # up to the flight's first sensor alarm (after one, the datum is lost honestly)
+            self.vpl.append(r.vpl_m)
+
+    def alarm(self, e):
+        self.alarmed = self.alarmed or (e.state == "alarm" and e.source != "input")
 
 
-def _run(path, **monitor):
-    cfg = config_from_dict({"monitor": monitor} if monitor else {})
+def _run(path, filter_=None, **monitor):
+    cfg = config_from_dict({"monitor": monitor, "filter": filter_ or {}})
     sink = _Sigmas()
     run(open_log(path, cfg.ingest), cfg, [sink])
     return sink, cfg
@@ -61,6 +66,10 @@ def test_the_tie_sets_the_start_prior_in_adaptive_mode_only():
     assert tie < tied.first["baro"] < math.sqrt(cfg.filter.p0.baro_bias_m2)
     paper, _ = _run(DKLA, mode="paper")
     assert paper.first["baro"] > 2 * tied.first["baro"]  # paper mode keeps the paper's P0
-    # a flight tied at the datum has a protection level within the alert limit most of the time
-    within = sum(v <= cfg.monitor.alert_limit_m for v in tied.vpl) / len(tied.vpl)
-    assert within > 0.5
+    # tied at the datum, the protection level is within the alert limit until the flight's first alarm;
+    # with the in-flight prior it is not
+    def within(s):
+        return sum(v <= cfg.monitor.alert_limit_m for v in s.vpl) / len(s.vpl)
+
+    untied, _ = _run(DKLA, filter_={"p0": {"baro_bias_at_datum_m2": cfg.filter.p0.baro_bias_m2}})
+    assert within(tied) > 0.9 and within(untied) < 0.1
