@@ -359,10 +359,9 @@ class ChannelBank:
         if baro_bias_m2 is not None:
             p0 = list(model.p0_diag)
             p0[DH] = baro_bias_m2
-            self.model = dataclasses.replace(model, p0_diag=tuple(p0))
+            model = dataclasses.replace(model, p0_diag=tuple(p0))
         for c in range(N_CH):
-            self.reinit(c, t_us, baro_m)
-        self.model = model
+            self.reinit(c, t_us, baro_m, model)
         self.Pc[:] = self.P[0]
         self.t_us = t_us
 
@@ -388,9 +387,10 @@ class ChannelBank:
         self.P[:, GB, GB] += sigma_m * sigma_m
         return True
 
-    def reinit(self, c: int, t_us: int, baro_m: Optional[float]) -> None:
-        """(Re)initialise channel ``c`` from the prior, conditioned on a baro sample."""
-        st = initial_state(self.model, t_us, baro_m)
+    def reinit(self, c: int, t_us: int, baro_m: Optional[float], model: Optional[Model] = None) -> None:
+        """(Re)initialise channel ``c`` from the prior (``model``'s, else the
+        bank's), conditioned on a baro sample."""
+        st = initial_state(model or self.model, t_us, baro_m)
         self.x[c] = st.x
         self.P[c] = st.P
         self.baro_prev[c] = math.nan if baro_m is None else baro_m
