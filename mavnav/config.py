@@ -378,6 +378,17 @@ class MonitorConfig(_Section):
     # 0.6-2.9 m on the modern receivers, bench/doppler_stats.py) while a ramp's
     # doubles, so a 0.5 m/s baro ramp clears the threshold sooner over 10 s.
     baro_doppler_window_s: float = Field(10.0, gt=0)
+    # The baro's height change is good to a fraction of the distance moved:
+    # its scale (the air temperature against the standard atmosphere's, a few
+    # per cent), the static-pressure error of the climb or descent and ground
+    # effect at take-off and landing. Added to baro_doppler_sigma_m in
+    # quadrature, times the Doppler's integral over the span read (and the
+    # test then also reads its latest 4 s). Off by default: on the real
+    # flights 0.05 takes the take-off cautions off the rrc hovers but lets a
+    # 0.5 m/s baro ramp from touchdown through while the window holds the
+    # landing, and with the 4 s reading it adds cautions on 2 Hz receivers
+    # (BENCHMARKS.md, session 9).
+    baro_doppler_scale_frac: float = Field(0.0, ge=0, le=1)
     # Rangefinder envelope: readings refused below its minimum (or above its
     # maximum) while the other sources put the vehicle more than margin inside
     # its range, for most of a window, are a rangefinder failure.

@@ -34,27 +34,42 @@ def _restart_on_gap(h: deque, t_us: int, max_gap_us: int) -> None:
         h.clear()
 
 
-def _window_first(h: deque, t_us: int, window_us: int):
+def _window_first(h: deque, t_us: int, window_us: int, min_span_us: float):
     """Trim the history to the window ending at ``t_us``; its first entry, or
-    None while it spans less than 80 % of the window."""
+    None while it spans less than ``min_span_us``."""
     start = t_us - window_us
     while len(h) > 2 and h[1][0] <= start:
         h.popleft()
-    return h[0] if t_us - h[0][0] >= 0.8 * window_us else None
+    return h[0] if t_us - h[0][0] >= min_span_us else None
 
 
 class DopplerCheck:
     """``e`` over ``window_s`` at each GNSS sample that carries a Doppler
     velocity. Samples further apart than ``max_gap_s``, or without a
-    velocity, restart the integral (no interpolation across a gap)."""
+    velocity, restart the integral (no interpolation across a gap).
 
-    __slots__ = ("window_us", "max_gap_us", "hist", "last_e_m", "last_us")
+    With ``min_span_s`` the check reads from that span on (a window restarted
+    by a gap is not blind for most of its length). With a ``scale_frac`` too,
+    once the window is longer, it also reads over the latest ``min_span_s``
+    and keeps the reading larger against its own error, ``hypot(sigma_m,
+    scale_frac * distance moved)``, so a window that still holds a climb or a
+    landing does not hide a ramp that began after it."""
 
-    def __init__(self, window_s: float, max_gap_s: float):
+    __slots__ = ("window_us", "max_gap_us", "min_span_us", "sigma_m", "scale_frac", "hist", "last_e_m",
+                 "last_disp_m", "last_span_s", "last_us")
+
+    def __init__(self, window_s: float, max_gap_s: float, min_span_s: Optional[float] = None,
+                 sigma_m: float = 1.0, scale_frac: float = 0.0):
         self.window_us = int(window_s * 1e6)
         self.max_gap_us = int(max_gap_s * 1e6)
+        # the shortest span that gives a reading (default 80 % of the window)
+        self.min_span_us = 0.8 * self.window_us if min_span_s is None else min(min_span_s * 1e6, self.window_us)
+        self.sigma_m = sigma_m
+        self.scale_frac = scale_frac
         self.hist: deque = deque()  # (t_us, height_m, vel_up_mps, integral_m)
         self.last_e_m = math.nan
+        self.last_disp_m = math.nan  # the Doppler's integral over the same window: how far the vehicle moved
+        self.last_span_s = math.nan  # the span the last reading covers
         self.last_us: Optional[int] = None
 
     def clear(self) -> None:
@@ -74,14 +89,30 @@ class DopplerCheck:
             t0, _, v0, i0 = h[-1]
             integral = i0 + 0.5 * (v0 + vel_up_mps) * (t_us - t0) * 1e-6
         h.append((t_us, height_m, vel_up_mps, integral))
-        first = _window_first(h, t_us, self.window_us)
+        first = _window_first(h, t_us, self.window_us, self.min_span_us)
         if first is None:
             return None
-        _, h_j, _, i_j = first
+        t_j, h_j, _, i_j = first
         e = (height_m - h_j) - (integral - i_j)
+        disp = integral - i_j
+        if self.scale_frac > 0.0 and t_us - t_j > self.min_span_us and self.min_span_us < 0.8 * self.window_us:
+            # the latest short span too: the first entry at least min_span back
+            k = len(h) - 1
+            while k > 0 and t_us - h[k][0] < self.min_span_us:
+                k -= 1
+            t_k, h_k, _, i_k = h[k]
+            e_k, d_k = (height_m - h_k) - (integral - i_k), integral - i_k
+            if abs(e_k) * self.error_m(disp) > abs(e) * self.error_m(d_k):
+                t_j, e, disp = t_k, e_k, d_k
         self.last_e_m = e
+        self.last_disp_m = disp
+        self.last_span_s = (t_us - t_j) * 1e-6
         self.last_us = t_us
         return e
+
+    def error_m(self, disp_m: float) -> float:
+        """The reading's own error over a span in which the vehicle moved ``disp_m``."""
+        return math.hypot(self.sigma_m, self.scale_frac * disp_m)
 
 
 class InsDopplerCheck:
@@ -126,7 +157,7 @@ class InsDopplerCheck:
         h = self.hist
         _restart_on_gap(h, t_us, self.max_gap_us)
         h.append((t_us, vel_up_mps, self._vel, self._var))
-        first = _window_first(h, t_us, self.window_us)
+        first = _window_first(h, t_us, self.window_us, 0.8 * self.window_us)
         if first is None:
             return None
         _, v_j, V_j, var_j = first

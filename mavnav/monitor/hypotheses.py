@@ -189,11 +189,16 @@ class HypothesisLogic:
         self.baro_minus_ins_m = math.nan
         # GNSS altitude against its own Doppler velocity: the check, its measured
         # scale (it only widens), consecutive GNSS samples past the threshold
-        self.doppler = DopplerCheck(m.doppler_window_s, m.doppler_max_gap_s)
+        self.doppler = DopplerCheck(m.doppler_window_s, m.doppler_max_gap_s, sigma_m=m.doppler_sigma_m)
         self.scale["doppler"] = ResidualScale(m.window_scale_tau_s, 1.0, sc[2], max_phi=0.0)
         self.doppler_ex = Exceedance()
         # the baro against the same Doppler velocity (alerts, never clears)
-        self.baro_doppler = DopplerCheck(m.baro_doppler_window_s, m.doppler_max_gap_s)
+        # reading from the GNSS test's own shortest span (the baro-Doppler scatter
+        # over 5 s is that over 10 s), so a window restarted by a gap is not blind
+        # for 8 s while a ramp grows
+        self.baro_doppler = DopplerCheck(m.baro_doppler_window_s, m.doppler_max_gap_s,
+                                         min_span_s=0.8 * m.doppler_window_s, sigma_m=m.baro_doppler_sigma_m,
+                                         scale_frac=m.baro_doppler_scale_frac)
         self.scale["baro_doppler"] = ResidualScale(m.window_scale_tau_s, 1.0, sc[2], max_phi=0.0)
         self.baro_doppler_ex = Exceedance()
         # the INS's velocity change against the Doppler's: the check, its scale,
@@ -367,28 +372,28 @@ class HypothesisLogic:
     def _doppler_thr(self) -> float:
         return self.k_cmp * self.m.doppler_sigma_m * self.scale["doppler"].factor
 
-    def _push_window(self, check, key: str, ex: Exceedance, sigma: float, t_meas: int, h: float, v: float) -> None:
-        """One sample into a Doppler window check: its exceedance, and its
-        measured scale (frozen while it leans towards a fault)."""
+    def _push_window(self, check, key: str, ex: Exceedance, t_meas: int, h: float, v: float) -> None:
+        """One sample into a Doppler window check: its exceedance against the
+        reading's own error, and its measured scale (frozen while it leans
+        towards a fault)."""
         e = check.push(t_meas, h, v)
         if e is None:
             ex.reset()
             return
+        sigma = check.error_m(check.last_disp_m)
         thr = self.k_cmp * sigma * self.scale[key].factor
         ex.update(t_meas, abs(e) > thr)
         if abs(e) <= self.m.suspect_frac * thr:
             self.scale[key].push(t_meas, e / sigma)
 
     def _push_doppler(self, t_meas: int, aux) -> None:
-        self._push_window(self.doppler, "doppler", self.doppler_ex, self.m.doppler_sigma_m,
-                          t_meas, aux.height_m, aux.vel_up_mps)
+        self._push_window(self.doppler, "doppler", self.doppler_ex, t_meas, aux.height_m, aux.vel_up_mps)
         if self.last_baro_m is not None:  # its verdict is optional; readmission always heeds it
             # the latest baro carried to the GNSS sample's time by the Doppler velocity
             iv = self.rates["baro_ins"].interval_s
             if iv == iv and abs(t_meas - self.last_baro_us) <= 2e6 * iv:
                 b = self.last_baro_m + aux.vel_up_mps * (t_meas - self.last_baro_us) * 1e-6
-                self._push_window(self.baro_doppler, "baro_doppler", self.baro_doppler_ex,
-                                  self.m.baro_doppler_sigma_m, t_meas, b, aux.vel_up_mps)
+                self._push_window(self.baro_doppler, "baro_doppler", self.baro_doppler_ex, t_meas, b, aux.vel_up_mps)
 
     def _doppler_verdict(self, t: int) -> Optional[Verdict]:
         """The GNSS altitude against its own Doppler velocity
@@ -430,10 +435,10 @@ class HypothesisLogic:
         if (not self.f.baro_doppler_check or {"gnss", "baro_ins"} & self.excluded or self._warm("gnss", t)
                 or d.last_us is None or t - d.last_us > self.stale_us[GNSS] or d.last_e_m != d.last_e_m):
             return None
-        thr = self.k_cmp * self.m.baro_doppler_sigma_m * self.scale["baro_doppler"].factor
+        thr = self.k_cmp * d.error_m(d.last_disp_m) * self.scale["baro_doppler"].factor
         e = d.last_e_m
         txt = (f"baro moved {e:+.2f} m against the GNSS Doppler velocity over "
-               f"{self.m.baro_doppler_window_s:g} s (threshold {thr:.2f} m)")
+               f"{d.last_span_s:.0f} s (threshold {thr:.2f} m; vehicle moved {d.last_disp_m:+.1f} m)")
         return self._graded("baro/Doppler", abs(e), thr, self.baro_doppler_ex, t, frozenset(("baro", "gnss")), txt)
 
     def _push_ins_doppler(self, ep: EpochInputs) -> None:
@@ -1078,17 +1083,28 @@ class HypothesisLogic:
             return None
         z, sigma = raw
         h, s = ref
-        # a GNSS whose altitude still moves against its own Doppler velocity stays out
+        # a GNSS whose altitude still moves against its own Doppler velocity stays out,
+        # and one whose Doppler moves against the baro in use: the Doppler is what
+        # the baro's ramps are judged by, so it comes back only when it is right too
         # hysteresis: back only inside clear_frac of the threshold that excludes (a
         # GNSS 5 m off with a 1 m accuracy was readmitted at 4.4 sigma, into the output)
         ok = (abs(z - h) <= self.m.clear_frac * self.k_cmp * math.hypot(sigma, s)
-              and not (c == RNG and self.envelope_failing) and not (c == GNSS and self.doppler_ex.count > 0))
+              and not (c == RNG and self.envelope_failing)
+              and not (c == GNSS and (self.doppler_ex.count > 0 or self._doppler_against_baro())))
         if not self._consistent_for(name, t, ok):
             return None
         self.excluded.discard(name)
         self._reinit_aux(c, name, t, sigma)
         return self.trackers[name].set("nominal", t, f"readmitted after {self.m.readmit_s:g} s consistent; "
                                                      "channel re-initialised")
+
+    def _doppler_against_baro(self) -> bool:
+        """The Doppler's integral over the baro/Doppler window, while the baro is
+        in use, disagrees with the baro beyond clear_frac of that test's threshold."""
+        d = self.baro_doppler
+        if "baro_ins" in self.excluded or d.last_e_m != d.last_e_m:
+            return False
+        return abs(d.last_e_m) > self.m.clear_frac * self.k_cmp * d.error_m(d.last_disp_m) * self.scale["baro_doppler"].factor
 
     def _maybe_readmit_baro(self, t: int):
         """Back when the baro agrees with the INS again and, where an aux
