@@ -327,6 +327,11 @@ class MonitorConfig(_Section):
     cusum_k_sigma: float = Field(0.5, gt=0)
     cusum_clip_sigma: float = Field(5.0, gt=0)
     cusum_false_alerts_per_h: float = Field(0.01, gt=0)
+    # Its fast arms, tuned to steps of 2 k sigma: a 3 sigma step in about three
+    # samples instead of six (the 1 s time-to-alarm at 5 Hz); 0 turns them off.
+    # Their own false-alert budget, beside the slow arms'.
+    cusum_fast_k_sigma: float = Field(1.5, ge=0)
+    cusum_fast_false_alerts_per_h: float = Field(0.01, gt=0)
     # Baro against the INS: the baro's change over this window against the
     # INS-propagated change of the baro+INS channel (ramps, steps, accelerometer faults).
     ins_window_s: float = Field(2.0, gt=0)

@@ -41,13 +41,22 @@ def threshold_for(k: float, false_alerts_per_h: float, rate_hz: float) -> float:
 
 
 class Cusum:
-    __slots__ = ("k", "clip", "up", "down")
+    """The two-sided CUSUM; with ``k_fast`` a second pair of arms beside it,
+    tuned to steps of ``2 k_fast`` sigma (a CUSUM is quickest for shifts near
+    ``2 k``: ``k = 0.5`` waits five or six samples for a 3 sigma step, ``k =
+    1.5`` about three). The caller sets each pair's threshold from its own
+    false-alert budget (:func:`threshold_for`)."""
 
-    def __init__(self, k: float, clip: float):
+    __slots__ = ("k", "clip", "up", "down", "k_fast", "up_fast", "down_fast")
+
+    def __init__(self, k: float, clip: float, k_fast: float = 0.0):
         self.k = k
         self.clip = clip
         self.up = 0.0
         self.down = 0.0
+        self.k_fast = k_fast  # 0: no fast arms
+        self.up_fast = 0.0
+        self.down_fast = 0.0
 
     def push(self, z: float) -> None:
         if z != z:
@@ -55,14 +64,24 @@ class Cusum:
         z = max(-self.clip, min(self.clip, z))
         self.up = max(0.0, self.up + z - self.k)
         self.down = max(0.0, self.down - z - self.k)
+        if self.k_fast:
+            self.up_fast = max(0.0, self.up_fast + z - self.k_fast)
+            self.down_fast = max(0.0, self.down_fast - z - self.k_fast)
 
     @property
     def stat(self) -> float:
         return max(self.up, self.down)
 
     @property
+    def fast_stat(self) -> float:
+        return max(self.up_fast, self.down_fast)
+
+    @property
     def sign(self) -> int:
+        if self.k_fast and max(self.up_fast, self.down_fast) > 0.0 and self.stat == 0.0:
+            return 1 if self.up_fast >= self.down_fast else -1
         return 1 if self.up >= self.down else -1
 
     def clear(self) -> None:
         self.up = self.down = 0.0
+        self.up_fast = self.down_fast = 0.0

@@ -119,6 +119,7 @@ class HypothesisLogic:
         self.kink_margin = chi2_gate(m.kink_isolation_prob)
         self.t0_us = 0
         self._h_cache: dict[int, float] = {}
+        self._h_fast_ratio: dict[int, float] = {}  # slow over fast CUSUM threshold, per rate key
         self._h_last: dict[str, tuple] = {}  # stream -> (its interval when last asked, h)
 
     # ------------------------------------------------------------------ state
@@ -129,7 +130,8 @@ class HypothesisLogic:
         self.boot = boot
         clear_us = int(m.clear_s * 1e6)
         self.trackers = {s: SourceTracker(s, t_us, boot, clear_us=clear_us) for s in SENSOR_SOURCES}
-        self.cusum = {s: Cusum(m.cusum_k_sigma, m.cusum_clip_sigma) for s in ("gnss", "rangefinder")}
+        fast_k = m.cusum_fast_k_sigma if m.mode != "paper" else 0.0
+        self.cusum = {s: Cusum(m.cusum_k_sigma, m.cusum_clip_sigma, fast_k) for s in ("gnss", "rangefinder")}
         self.rates = {s: _Rate() for s in ("gnss", "rangefinder", "baro_ins")}
         self.rejections = {s: InnovationWindow(m.window_s, cap=self.gate) for s in SENSOR_SOURCES}
         self.excluded: set[str] = set()
@@ -237,7 +239,19 @@ class HypothesisLogic:
         if h is None:
             h = self._h_cache[key] = threshold_for(self.m.cusum_k_sigma, self.m.cusum_false_alerts_per_h,
                                                    max(key / 2.0, 0.5))
+            k_fast = self.cusum[name].k_fast
+            self._h_fast_ratio[key] = (h / threshold_for(k_fast, self.m.cusum_fast_false_alerts_per_h,
+                                                         max(key / 2.0, 0.5)) if k_fast else 0.0)
         return h
+
+    def _cusum_stat(self, name: str) -> float:
+        """The CUSUM statistic in its slow arms' units: the larger of the slow
+        arms and the fast arms scaled by the ratio of their thresholds, so that
+        either arm past its own threshold is past ``_h``."""
+        cs = self.cusum[name]
+        h = self._h(name)  # also fills the ratio for this rate
+        ratio = self._h_fast_ratio.get(int(round(self.rates[name].hz * 2)), 0.0)
+        return max(cs.stat, cs.fast_stat * ratio) if ratio else cs.stat
 
     def pre(self, ep: EpochInputs) -> EpochInputs:
         """Gate GNSS / rangefinder samples, judge the baro sample, keep excluded sources out."""
@@ -365,7 +379,7 @@ class HypothesisLogic:
         if self.f.window_test and not ("baro_ins" in self.excluded and self.ins_excluded):
             sc = self.scale[name]
             self.cusum[name].push(z / sc.factor)
-            if not reject and self.cusum[name].stat < self.m.suspect_frac * self._h(name):
+            if not reject and self._cusum_stat(name) < self.m.suspect_frac * self._h(name):
                 sc.push(t, z)  # frozen while the test leans towards a fault
         self.rejections[name].push(t, z * z, reject)
 
@@ -564,25 +578,26 @@ class HypothesisLogic:
         m = self.m
         cs = self.cusum[name]
         h = self._h(name)
+        stat = self._cusum_stat(name)
         rej = self.rejections[name].rejected
         implicates = self._aux_implicates(c, name)
         label = LABEL[name]
         sudden = self._sudden_now(name, t)
-        if (self.f.innovation_gating and (rej >= m.alarm_rejections or cs.stat > h)
+        if (self.f.innovation_gating and (rej >= m.alarm_rejections or stat > h)
                 and sudden is not None and sudden[1]):
-            return Verdict(f"{name} innovation", "fail", frozenset((name,)), stat=cs.stat, threshold=h,
+            return Verdict(f"{name} innovation", "fail", frozenset((name,)), stat=stat, threshold=h,
                            text=f"{label} jumped {sudden[2]:.2f} m while the baro and INS stayed consistent; "
                                 f"{rej} samples rejected in {m.window_s:g} s", scale_m=sudden[2])
-        if (self.f.innovation_gating and rej >= m.alarm_rejections) or cs.stat > h:
+        if (self.f.innovation_gating and rej >= m.alarm_rejections) or stat > h:
             why = (f"{rej} {label} samples rejected in {m.window_s:g} s" if rej >= m.alarm_rejections
-                   else f"{label} innovations drift {'up' if cs.sign > 0 else 'down'} (CUSUM {cs.stat:.1f} > {h:.1f})")
-            return Verdict(f"{name} innovation", "fail", implicates, stat=cs.stat, threshold=h, text=why,
+                   else f"{label} innovations drift {'up' if cs.sign > 0 else 'down'} (CUSUM {stat:.1f} > {h:.1f})")
+            return Verdict(f"{name} innovation", "fail", implicates, stat=stat, threshold=h, text=why,
                            scale_m=abs(self.r_avg_m[name]))
-        if rej >= m.caution_rejections or cs.stat > m.suspect_frac * h:
-            return Verdict(f"{name} innovation", "suspect", implicates, stat=cs.stat, threshold=h,
-                           text=f"{label}: {rej} rejected, CUSUM {cs.stat:.1f} of {h:.1f}")
-        return Verdict(f"{name} innovation", "pass", implicates, self._aux_clears(c, name, t, cs.stat, h, rej),
-                       cs.stat, h, scale_m=abs(self.r_avg_m[name]) + m.clear_margin_sigma * self.last_sd_m[name])
+        if rej >= m.caution_rejections or stat > m.suspect_frac * h:
+            return Verdict(f"{name} innovation", "suspect", implicates, stat=stat, threshold=h,
+                           text=f"{label}: {rej} rejected, CUSUM {stat:.1f} of {h:.1f}")
+        return Verdict(f"{name} innovation", "pass", implicates, self._aux_clears(c, name, t, stat, h, rej),
+                       stat, h, scale_m=abs(self.r_avg_m[name]) + m.clear_margin_sigma * self.last_sd_m[name])
 
     def _aux_clears(self, c: int, name: str, t: int, stat: float, h: float, rej: int) -> frozenset:
         """What an aux innovation pass rules out: nothing unless the test is
@@ -706,7 +721,7 @@ class HypothesisLogic:
                 # it out coasts on the baro, and one whose innovations drift has its
                 # baro-bias estimate dH between the two, so H + dH follows the baro
                 held = (self.rejections[name].rejected == 0
-                        and self.cusum[name].stat < self.m.clear_frac * self._h(name))
+                        and self._cusum_stat(name) < self.m.clear_frac * self._h(name))
                 # and never where the channel models the GNSS's slow error: its b_g
                 # takes up a slow baro error, and H + dH follows the baro
                 tracks = held and not (c == GNSS and bank.model.gnss_gm_sigma_m > 0.0)
@@ -974,7 +989,7 @@ class HypothesisLogic:
             elif self.hold_restart_us > 0 and t - self.hold_since >= self.hold_restart_us:
                 self.hold_since = t
                 for v, (_, name) in zip(aux, AUX):
-                    if v is not None and v.failed and self.cusum[name].stat > self._h(name):
+                    if v is not None and v.failed and self._cusum_stat(name) > self._h(name):
                         self.cusum[name].clear()
                         self.restarted_us[name] = t
             return j
