@@ -249,7 +249,7 @@ class HypothesisLogic:
         arms and the fast arms scaled by the ratio of their thresholds, so that
         either arm past its own threshold is past ``_h``."""
         cs = self.cusum[name]
-        h = self._h(name)  # also fills the ratio for this rate
+        self._h(name)  # fills the ratio for this rate
         ratio = self._h_fast_ratio.get(int(round(self.rates[name].hz * 2)), 0.0)
         return max(cs.stat, cs.fast_stat * ratio) if ratio else cs.stat
 
