@@ -115,6 +115,33 @@ def test_the_fast_arms_find_a_3_sigma_step_in_three_samples_and_keep_their_budge
     assert np.mean(np.array(fast_n) <= 5) >= 0.9 > np.mean(np.array(slow_n) <= 5)
 
 
+@pytest.mark.unit
+def test_the_fast_arms_size_the_step_they_sum():
+    """``k + S / n`` over the samples since the leading fast arm left zero: the
+    step's own size at once (the innovations' 1 s mean has only a third of it
+    after two samples at 5 Hz), either sign, and nothing after a clear."""
+    c = Cusum(0.5, 5.0, k_fast=1.5)
+    for z in (0.2, -0.4, 0.1):
+        c.push(z)
+    assert c.fast_shift == 0.0
+    for _ in range(3):
+        c.push(3.0)
+    assert c.fast_shift == pytest.approx(3.0)
+    c.clear()
+    assert c.fast_shift == 0.0
+    for _ in range(2):
+        c.push(-4.0)
+    assert c.fast_shift == pytest.approx(4.0) and c.sign < 0
+    rng = np.random.default_rng(7)
+    sizes = []
+    for _ in range(200):
+        c.clear()
+        for z in rng.standard_normal(3) + 3.0:
+            c.push(float(z))
+        sizes.append(c.fast_shift)
+    assert np.median(sizes) == pytest.approx(3.0, abs=0.4)
+
+
 LOG = SHARED / "flightlogs" / "SITL_wlichon_baseline_00000001.BIN"
 
 

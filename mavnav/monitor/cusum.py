@@ -47,7 +47,7 @@ class Cusum:
     1.5`` about three). The caller sets each pair's threshold from its own
     false-alert budget (:func:`threshold_for`)."""
 
-    __slots__ = ("k", "clip", "up", "down", "k_fast", "up_fast", "down_fast")
+    __slots__ = ("k", "clip", "up", "down", "k_fast", "up_fast", "down_fast", "n_up_fast", "n_down_fast")
 
     def __init__(self, k: float, clip: float, k_fast: float = 0.0):
         self.k = k
@@ -57,6 +57,8 @@ class Cusum:
         self.k_fast = k_fast  # 0: no fast arms
         self.up_fast = 0.0
         self.down_fast = 0.0
+        self.n_up_fast = 0  # samples since each fast arm last stood at zero
+        self.n_down_fast = 0
 
     def push(self, z: float) -> None:
         if z != z:
@@ -67,6 +69,8 @@ class Cusum:
         if self.k_fast:
             self.up_fast = max(0.0, self.up_fast + z - self.k_fast)
             self.down_fast = max(0.0, self.down_fast - z - self.k_fast)
+            self.n_up_fast = self.n_up_fast + 1 if self.up_fast > 0.0 else 0
+            self.n_down_fast = self.n_down_fast + 1 if self.down_fast > 0.0 else 0
 
     @property
     def stat(self) -> float:
@@ -77,6 +81,15 @@ class Cusum:
         return max(self.up_fast, self.down_fast)
 
     @property
+    def fast_shift(self) -> float:
+        """The shift the leading fast arm has summed, in sigma: ``k + S / n``
+        over the ``n`` samples since it left zero (the CUSUM's own estimate of
+        a step's size; 0 while both arms stand at zero)."""
+        if self.up_fast >= self.down_fast:
+            return self.k_fast + self.up_fast / self.n_up_fast if self.n_up_fast else 0.0
+        return self.k_fast + self.down_fast / self.n_down_fast if self.n_down_fast else 0.0
+
+    @property
     def sign(self) -> int:
         if self.k_fast and max(self.up_fast, self.down_fast) > 0.0 and self.stat == 0.0:
             return 1 if self.up_fast >= self.down_fast else -1
@@ -85,3 +98,4 @@ class Cusum:
     def clear(self) -> None:
         self.up = self.down = 0.0
         self.up_fast = self.down_fast = 0.0
+        self.n_up_fast = self.n_down_fast = 0

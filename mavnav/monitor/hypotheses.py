@@ -591,8 +591,13 @@ class HypothesisLogic:
         if (self.f.innovation_gating and rej >= m.alarm_rejections) or stat > h:
             why = (f"{rej} {label} samples rejected in {m.window_s:g} s" if rej >= m.alarm_rejections
                    else f"{label} innovations drift {'up' if cs.sign > 0 else 'down'} (CUSUM {stat:.1f} > {h:.1f})")
+            # the failure's size: the innovations' recent mean, or, where the fast arms
+            # fail, the step they have summed (the mean lags a step by fail_size_tau_s)
+            size = abs(self.r_avg_m[name])
+            if stat > cs.stat:
+                size = max(size, cs.fast_shift * self.scale[name].factor * self.last_sd_m[name])
             return Verdict(f"{name} innovation", "fail", implicates, stat=stat, threshold=h, text=why,
-                           scale_m=abs(self.r_avg_m[name]))
+                           scale_m=size)
         if rej >= m.caution_rejections or stat > m.suspect_frac * h:
             return Verdict(f"{name} innovation", "suspect", implicates, stat=stat, threshold=h,
                            text=f"{label}: {rej} rejected, CUSUM {stat:.1f} of {h:.1f}")
