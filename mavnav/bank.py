@@ -23,7 +23,6 @@ Channel order is :data:`mavnav.channel.CHANNELS`: 0 = gnss, 1 = rangefinder,
 from __future__ import annotations
 
 import dataclasses
-
 import math
 from dataclasses import dataclass
 from typing import Optional

@@ -91,8 +91,8 @@ class Cusum:
 
     @property
     def sign(self) -> int:
-        if self.k_fast and max(self.up_fast, self.down_fast) > 0.0 and self.stat == 0.0:
-            return 1 if self.up_fast >= self.down_fast else -1
+        # the slow arms always hold at least what the fast ones do (a smaller k
+        # on the same residuals), so their sign is the fast arms' too
         return 1 if self.up >= self.down else -1
 
     def clear(self) -> None:

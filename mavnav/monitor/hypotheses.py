@@ -118,9 +118,8 @@ class HypothesisLogic:
         self.gm_with_doppler_m = cfg.sensors.gnss.gm_sigma_with_doppler_m
         self.kink_margin = chi2_gate(m.kink_isolation_prob)
         self.t0_us = 0
-        self._h_cache: dict[int, float] = {}
-        self._h_fast_ratio: dict[int, float] = {}  # slow over fast CUSUM threshold, per rate key
-        self._h_last: dict[str, tuple] = {}  # stream -> (its interval when last asked, h)
+        self._h_cache: dict[int, tuple] = {}  # rate key -> (h, slow over fast threshold)
+        self._h_last: dict[str, tuple] = {}  # stream -> (its interval when last asked, (h, ratio))
 
     # ------------------------------------------------------------------ state
 
@@ -225,32 +224,36 @@ class HypothesisLogic:
 
     def _h(self, name: str) -> float:
         """CUSUM threshold for a stream at its own rate (cached per 0.5 Hz)."""
+        return self._h_and_ratio(name)[0]
+
+    def _h_and_ratio(self, name: str) -> tuple:
+        """The slow arms' threshold and its ratio to the fast arms' (0: no fast
+        arms) for a stream at its own rate (cached per 0.5 Hz)."""
         iv = self.rates[name].interval_s
         last = self._h_last.get(name)
         if last is not None and last[0] == iv:  # the same interval as last asked: the same h
             return last[1]
-        h = self._h_at_rate(name)
-        self._h_last[name] = (iv, h)
-        return h
+        pair = self._h_at_rate(name)
+        self._h_last[name] = (iv, pair)
+        return pair
 
-    def _h_at_rate(self, name: str) -> float:
+    def _h_at_rate(self, name: str) -> tuple:
         key = int(round(self.rates[name].hz * 2))
-        h = self._h_cache.get(key)
-        if h is None:
-            h = self._h_cache[key] = threshold_for(self.m.cusum_k_sigma, self.m.cusum_false_alerts_per_h,
-                                                   max(key / 2.0, 0.5))
+        pair = self._h_cache.get(key)
+        if pair is None:
+            rate_hz = max(key / 2.0, 0.5)
+            h = threshold_for(self.m.cusum_k_sigma, self.m.cusum_false_alerts_per_h, rate_hz)
             k_fast = self.cusum[name].k_fast
-            self._h_fast_ratio[key] = (h / threshold_for(k_fast, self.m.cusum_fast_false_alerts_per_h,
-                                                         max(key / 2.0, 0.5)) if k_fast else 0.0)
-        return h
+            ratio = h / threshold_for(k_fast, self.m.cusum_fast_false_alerts_per_h, rate_hz) if k_fast else 0.0
+            pair = self._h_cache[key] = (h, ratio)
+        return pair
 
     def _cusum_stat(self, name: str) -> float:
         """The CUSUM statistic in its slow arms' units: the larger of the slow
         arms and the fast arms scaled by the ratio of their thresholds, so that
         either arm past its own threshold is past ``_h``."""
         cs = self.cusum[name]
-        self._h(name)  # fills the ratio for this rate
-        ratio = self._h_fast_ratio.get(int(round(self.rates[name].hz * 2)), 0.0)
+        ratio = self._h_and_ratio(name)[1]
         return max(cs.stat, cs.fast_stat * ratio) if ratio else cs.stat
 
     def pre(self, ep: EpochInputs) -> EpochInputs:
@@ -383,8 +386,10 @@ class HypothesisLogic:
                 sc.push(t, z)  # frozen while the test leans towards a fault
         self.rejections[name].push(t, z * z, reject)
 
-    def _doppler_thr(self) -> float:
-        return self.k_cmp * self.m.doppler_sigma_m * self.scale["doppler"].factor
+    def _window_thr(self, check, key: str) -> float:
+        """A Doppler window check's threshold for its last reading: k times the
+        reading's own error times the check's measured scale."""
+        return self.k_cmp * check.error_m(check.last_disp_m) * self.scale[key].factor
 
     def _push_window(self, check, key: str, ex: Exceedance, t_meas: int, h: float, v: float) -> None:
         """One sample into a Doppler window check: its exceedance against the
@@ -394,11 +399,10 @@ class HypothesisLogic:
         if e is None:
             ex.reset()
             return
-        sigma = check.error_m(check.last_disp_m)
-        thr = self.k_cmp * sigma * self.scale[key].factor
+        thr = self._window_thr(check, key)
         ex.update(t_meas, abs(e) > thr)
         if abs(e) <= self.m.suspect_frac * thr:
-            self.scale[key].push(t_meas, e / sigma)
+            self.scale[key].push(t_meas, e / check.error_m(check.last_disp_m))
 
     def _push_doppler(self, t_meas: int, aux) -> None:
         self._push_window(self.doppler, "doppler", self.doppler_ex, t_meas, aux.height_m, aux.vel_up_mps)
@@ -417,7 +421,7 @@ class HypothesisLogic:
         if (not self.f.doppler_check or "gnss" in self.excluded or self._warm("gnss", t)
                 or d.last_us is None or t - d.last_us > self.stale_us[GNSS] or d.last_e_m != d.last_e_m):
             return None
-        thr = self._doppler_thr()
+        thr = self._window_thr(d, "doppler")
         e = d.last_e_m
         txt = (f"GNSS altitude moved {e:+.2f} m against its own Doppler velocity over "
                f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m)")
@@ -449,7 +453,7 @@ class HypothesisLogic:
         if (not self.f.baro_doppler_check or {"gnss", "baro_ins"} & self.excluded or self._warm("gnss", t)
                 or d.last_us is None or t - d.last_us > self.stale_us[GNSS] or d.last_e_m != d.last_e_m):
             return None
-        thr = self.k_cmp * d.error_m(d.last_disp_m) * self.scale["baro_doppler"].factor
+        thr = self._window_thr(d, "baro_doppler")
         e = d.last_e_m
         txt = (f"baro moved {e:+.2f} m against the GNSS Doppler velocity over "
                f"{d.last_span_s:.0f} s (threshold {thr:.2f} m; vehicle moved {d.last_disp_m:+.1f} m)")
@@ -1124,7 +1128,7 @@ class HypothesisLogic:
         d = self.baro_doppler
         if "baro_ins" in self.excluded or d.last_e_m != d.last_e_m:
             return False
-        return abs(d.last_e_m) > self.m.clear_frac * self.k_cmp * d.error_m(d.last_disp_m) * self.scale["baro_doppler"].factor
+        return abs(d.last_e_m) > self.m.clear_frac * self._window_thr(d, "baro_doppler")
 
     def _maybe_readmit_baro(self, t: int):
         """Back when the baro agrees with the INS again and, where an aux
