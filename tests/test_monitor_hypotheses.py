@@ -204,6 +204,34 @@ def test_a_baro_spike_is_gated_and_a_baro_step_alarms_within_a_second():
 
 
 @pytest.mark.unit
+def test_a_baro_jump_being_watched_is_no_evidence_and_one_that_stayed_is_a_failure():
+    """A baro sample past the jump gate is out of every filter; while the
+    monitor watches whether the jump stays, the baro/INS verdict is a pass that
+    rules nothing out (no caution for a gated sample: on real flights the
+    watches alone put the baro in caution 1.7 % of the flight time). The jump
+    that stayed fails and isolates baro_ins."""
+    from mavnav.bank import ChannelBank
+    from mavnav.channel import Model
+    from mavnav.config import config_from_dict
+    from mavnav.monitor.hypotheses import HypothesisLogic
+
+    cfg = config_from_dict({})
+    logic = HypothesisLogic(cfg, ChannelBank(Model.from_config(cfg)))
+    logic.start(0, 0)
+    implicates = frozenset((B, I))
+    assert logic._jump_verdict(10_000_000, implicates) is None  # no jump: the window test decides
+    logic.jump = [10_000_000, 2.0, 0.2, 2.0, 1, ()]  # opened at 10 s: 2 m, 10 sigma
+    watched = logic._jump_verdict(10_200_000, implicates)
+    assert watched.level == "pass" and not watched.exonerates
+    assert judge([watched]).situation == "clear"
+    assert judge([watched, fail(B, G)]).situation == "ambiguous"  # it clears nothing
+    logic.jump, logic.jump_confirmed = None, (10_600_000, 1.9, 10.0)
+    stayed = logic._jump_verdict(10_700_000, implicates)
+    assert stayed.level == "fail" and judge([stayed]).situation == "isolated"
+    assert judge([stayed]).sources == frozenset(("baro_ins",))
+
+
+@pytest.mark.unit
 def test_a_failure_can_be_sized_per_hypothesis():
     """One INS-against-Doppler failure: 5 m of position if it is the GNSS's
     velocity, 1 m of the baro/INS check's second difference if it is the INS.

@@ -675,7 +675,7 @@ class HypothesisLogic:
         return Verdict("baro/INS", "pass", implicates, clear, stat, thr, scale_m=thr)  # V_s follows a slow error in part
 
     def _jump_verdict(self, t: int, implicates: frozenset) -> Optional[Verdict]:
-        """A baro step that stayed (fail) or a jump being watched (suspect), if any."""
+        """A baro step that stayed (fail) or a jump being watched (a pass that clears nothing), if any."""
         jc = self.jump_confirmed
         if jc is not None and t - jc[0] > self.rejections["baro_ins"].length_us:
             jc = self.jump_confirmed = None
@@ -686,9 +686,12 @@ class HypothesisLogic:
                            text=f"baro stepped {jc[1]:+.2f} m against the INS ({jc[2]:.1f} sigma) and stayed",
                            scale_m=abs(jc[1]))
         if self.jump is not None:
-            return Verdict("baro/INS", "suspect", implicates, stat=abs(self.jump[1]) / self.jump[2],
-                           threshold=math.sqrt(self.baro_gate),
-                           text=f"baro jumped {self.jump[1]:+.2f} m against the INS; watching whether it stays")
+            # a jump being watched is a gated sample: the gate keeps it out of every
+            # channel, and it is a step (a failure) only if it stays. Until then it
+            # is no evidence against the baro (a pass that rules nothing out) and
+            # the window test, whose residual holds the jump, waits for the verdict
+            return Verdict("baro/INS", "pass", implicates, stat=abs(self.jump[1]) / self.jump[2],
+                           threshold=math.sqrt(self.baro_gate))
         return None
 
     def _level_verdicts(self, t: int) -> list[Verdict]:
