@@ -1,6 +1,6 @@
 """The estimator on real flights: is each channel consistent with its own model?
 
-    python bench/estimator_real.py [--workers 2] [--limit N] [--json out.json] [paths...]
+    python bench/estimator_real.py [--workers 2] [--limit N] [--json out.json] [--set KEY=YAML] [paths...]
 
 Runs the three channel filters alone (the epoch builder and the bank, every
 measurement row used, no integrity decisions) over every real flight that
@@ -25,6 +25,7 @@ Numbers are what the estimator does, good or bad.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import sys
@@ -39,7 +40,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 
-from realflights import find_flights  # noqa: E402
+from realflights import find_flights, parse_set  # noqa: E402
 
 from mavnav.bank import BARO, GNSS, RNG, ChannelBank  # noqa: E402
 from mavnav.channel import Model  # noqa: E402
@@ -189,7 +190,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--limit", type=int, default=0)
     ap.add_argument("--json", dest="json_out")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=YAML",
+                    help="a configuration setting by its dotted key (e.g. sensors.gnss.gm_tau_s=1000); repeatable")
     args = ap.parse_args(argv)
+    job = functools.partial(flight, cfg_dict=parse_set(args.set))
     if args.paths:
         paths = [str(p) for p in args.paths]
     else:
@@ -201,9 +205,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     t0 = time.perf_counter()
     if args.workers > 1:
         with get_context("spawn").Pool(args.workers) as pool:
-            results = pool.map(flight, paths, chunksize=1)
+            results = pool.map(job, paths, chunksize=1)
     else:
-        results = [flight(p) for p in paths]
+        results = [job(p) for p in paths]
     print(report(results))
     print(f"\n{len(results)} flights in {time.perf_counter() - t0:.0f} s")
     if args.json_out:

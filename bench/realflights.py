@@ -182,6 +182,19 @@ _OVERRIDES: dict = {}  # settings from --set, applied to every contender
 _SECTIONS = ("sensors", "filter", "ingest")  # --set keys under these are not monitor settings
 
 
+def parse_set(items: Sequence[str]) -> dict:
+    """``KEY=YAML`` settings (dotted keys) as a nested dict."""
+    out: dict = {}
+    for item in items:
+        key, _, value = item.partition("=")
+        node = out
+        *parents, leaf = key.split(".")
+        for k in parents:
+            node = node.setdefault(k, {})
+        node[leaf] = yaml.safe_load(value)
+    return out
+
+
 def _cfg(mode: str):
     top = {k: v for k, v in _OVERRIDES.items() if k in _SECTIONS}
     monitor = {k: v for k, v in _OVERRIDES.items() if k not in _SECTIONS}
@@ -527,14 +540,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     paths = [Path(q) for q in args.paths] or [q for v in groups.values() for q in v]
     if args.limit:
         paths = paths[: args.limit]
-    overrides: dict = {}
-    for item in args.set:
-        key, _, value = item.partition("=")
-        node = overrides
-        *parents, leaf = key.split(".")
-        for k in parents:
-            node = node.setdefault(k, {})
-        node[leaf] = yaml.safe_load(value)
+    overrides = parse_set(args.set)
     specs = [{"path": str(q), "sitl": is_sitl(q), "faults": not args.no_faults, "overrides": overrides}
              for q in paths]
     t0 = time.perf_counter()
