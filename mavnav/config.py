@@ -358,6 +358,10 @@ class MonitorConfig(_Section):
     kink_learn_interval_s: float = Field(1.0, gt=0)
     kink_learn_tau_s: float = Field(120.0, gt=0)
     kink_min_learned: int = Field(30, ge=2)
+    # A kink fit needs this many samples and its series to span this fraction
+    # of the window (a series restarted by a baro gap is not read at once).
+    kink_min_samples: int = Field(8, ge=4)
+    kink_min_fill_frac: float = Field(0.7, gt=0, le=1)
     # GNSS altitude against the receiver's Doppler vertical velocity
     # (mavnav/monitor/doppler.py): the altitude's change over doppler_window_s
     # less the velocity's integral, against k(false_alarm_prob) times
@@ -408,6 +412,11 @@ class MonitorConfig(_Section):
     baro_jump_confirm_s: float = Field(0.5, ge=0)
     baro_jump_confirm_samples: int = Field(2, ge=1)
     baro_jump_stay_frac: float = Field(0.5, gt=0, le=1)
+    # The clean samples a jump is measured from: the median of this many, each
+    # carried to the jump's time by the INS (one noisy sample is no reference).
+    baro_jump_reference_samples: int = Field(5, ge=1)
+    # The raw GNSS - rangefinder check (monitor/rawcheck.py) averages this long.
+    raw_check_window_s: float = Field(1.0, gt=0)
     # The measured scale of each test's normalised residuals (monitor/scale.py):
     # forgetting time, and how far the data may sharpen (min) or dull (max) a
     # test against the filters' own covariance.

@@ -27,6 +27,10 @@ import math
 from collections import deque
 from typing import Optional
 
+# The shortest span a window check reads from by default, as a fraction of its
+# window: a window restarted by a gap reads again once it holds this much.
+MIN_SPAN_FRAC = 0.8
+
 
 def _restart_on_gap(h: deque, t_us: int, max_gap_us: int) -> None:
     """A sample not after the last one, or after a gap, starts the history again."""
@@ -63,7 +67,8 @@ class DopplerCheck:
         self.window_us = int(window_s * 1e6)
         self.max_gap_us = int(max_gap_s * 1e6)
         # the shortest span that gives a reading (default 80 % of the window)
-        self.min_span_us = 0.8 * self.window_us if min_span_s is None else min(min_span_s * 1e6, self.window_us)
+        self.min_span_us = (MIN_SPAN_FRAC * self.window_us if min_span_s is None
+                            else min(min_span_s * 1e6, self.window_us))
         self.sigma_m = sigma_m
         self.scale_frac = scale_frac
         self.hist: deque = deque()  # (t_us, height_m, vel_up_mps, integral_m)

@@ -49,7 +49,7 @@ from ..channel import EpochInputs
 from ..config import Config
 from .cusum import Cusum, threshold_for
 from .decision import Decision, diff_sigmas, pair_reports
-from .doppler import DopplerCheck, Exceedance, InsDopplerCheck
+from .doppler import MIN_SPAN_FRAC, DopplerCheck, Exceedance, InsDopplerCheck
 from .fusion import fuse_heights
 from .inscheck import InsBaroCheck
 from .kink import KinkSeries, MeanSquare, isolate, kink_fit, onsets
@@ -80,6 +80,17 @@ def _last(q: deque, n: int) -> list:
     return [q[i] for i in range(-min(n, len(q)), 0)]
 
 
+# A stream's rate: the mean of its intervals, each new one weighted this much,
+# and the rate assumed before the second sample.
+RATE_EMA_WEIGHT = 0.1
+RATE_BEFORE_DATA_HZ = 10.0
+# CUSUM thresholds are computed once per rate step of this many hertz.
+CUSUM_RATE_STEP_HZ = 0.5
+# How far back (in clean baro samples) the baro offset scale looks for
+# references at least baro_jump_confirm_s old.
+OFFSET_SEARCH_SAMPLES = 16
+
+
 class _Rate:
     """Samples per second of one stream, from its own intervals (EMA)."""
 
@@ -90,12 +101,15 @@ class _Rate:
     def push(self, t_us: int) -> None:
         if self.last_us is not None and t_us > self.last_us:
             dt = (t_us - self.last_us) * 1e-6
-            self.interval_s = dt if self.interval_s != self.interval_s else 0.9 * self.interval_s + 0.1 * dt
+            self.interval_s = (dt if self.interval_s != self.interval_s
+                               else (1.0 - RATE_EMA_WEIGHT) * self.interval_s + RATE_EMA_WEIGHT * dt)
         self.last_us = t_us
 
     @property
     def hz(self) -> float:
-        return 1.0 / self.interval_s if self.interval_s == self.interval_s and self.interval_s > 0 else 10.0
+        if self.interval_s == self.interval_s and self.interval_s > 0:
+            return 1.0 / self.interval_s
+        return RATE_BEFORE_DATA_HZ
 
 
 class HypothesisLogic:
@@ -146,7 +160,7 @@ class HypothesisLogic:
         self.bank.baro_on[:] = True
         self.ins = InsBaroCheck(m.ins_window_s)
         self.ins_exceed_since: Optional[int] = None
-        self.raw_check = RawAuxCheck(window_s=1.0, k=self.k_cmp)
+        self.raw_check = RawAuxCheck(window_s=m.raw_check_window_s, k=self.k_cmp)
         self.refused: deque = deque()  # (t_us, kind, value_m, min_m, max_m)
         self.range_valid: deque = deque()
         self.isolated_since: Optional[int] = None
@@ -198,7 +212,8 @@ class HypothesisLogic:
         # over 5 s is that over 10 s), so a window restarted by a gap is not blind
         # for 8 s while a ramp grows
         self.baro_doppler = DopplerCheck(m.baro_doppler_window_s, m.doppler_max_gap_s,
-                                         min_span_s=0.8 * m.doppler_window_s, sigma_m=m.baro_doppler_sigma_m,
+                                         min_span_s=MIN_SPAN_FRAC * m.doppler_window_s,
+                                         sigma_m=m.baro_doppler_sigma_m,
                                          scale_frac=m.baro_doppler_scale_frac)
         self.scale["baro_doppler"] = ResidualScale(m.window_scale_tau_s, 1.0, sc[2], max_phi=0.0)
         self.baro_doppler_ex = Exceedance()
@@ -238,10 +253,10 @@ class HypothesisLogic:
         return pair
 
     def _h_at_rate(self, name: str) -> tuple:
-        key = int(round(self.rates[name].hz * 2))
+        key = int(round(self.rates[name].hz / CUSUM_RATE_STEP_HZ))
         pair = self._h_cache.get(key)
         if pair is None:
-            rate_hz = max(key / 2.0, 0.5)
+            rate_hz = max(key * CUSUM_RATE_STEP_HZ, CUSUM_RATE_STEP_HZ)
             h = threshold_for(self.m.cusum_k_sigma, self.m.cusum_false_alerts_per_h, rate_hz)
             k_fast = self.cusum[name].k_fast
             ratio = h / threshold_for(k_fast, self.m.cusum_fast_false_alerts_per_h, rate_hz) if k_fast else 0.0
@@ -533,11 +548,12 @@ class HypothesisLogic:
             while before and t - before[0][0] > 1e6 * max(1.0, 2 * m.baro_jump_confirm_s):
                 before.popleft()
             if reject and before:
-                ref = tuple(_last(before, 5))
+                ref = tuple(_last(before, m.baro_jump_reference_samples))
                 size = b - self._carried(ref, t)
                 self.jump = [t, size, sd, size, 0, ref]
             elif not reject:
-                old = [e for e in _last(before, 16) if t - e[0] >= m.baro_jump_confirm_s * 1e6][-5:]
+                old = [e for e in _last(before, OFFSET_SEARCH_SAMPLES)
+                       if t - e[0] >= m.baro_jump_confirm_s * 1e6][-m.baro_jump_reference_samples:]
                 if old:
                     self.offset_scale.push(t, b - self._carried(old, t))
                 before.append((t, b, ins.pos_m, ins.vel_mps, float(self.bank.x[self._anchor(), 1])))
@@ -836,7 +852,7 @@ class HypothesisLogic:
         self.kink_learned_s = ts
         for key, ser in self.kink.items():
             s, y = ser.arrays(ts)
-            if s.size < 8 or s[0] > -0.7 * m.kink_window_s:
+            if s.size < m.kink_min_samples or s[0] > -m.kink_min_fill_frac * m.kink_window_s:
                 continue
             num, den = kink_fit(s, y, np.array([-m.kink_window_s / 3.0]), quadratic=key.endswith("-ins"))
             if den[0] > 0:
@@ -845,7 +861,7 @@ class HypothesisLogic:
     def _kink(self, key: str, ts: float, tau: float) -> Optional[tuple[float, float]]:
         """A series' kink slope at onset ``tau`` and its standard deviation."""
         s, y = self.kink[key].arrays(ts)
-        if s.size < 8 or s[0] > tau - self.m.kink_min_pre_s:
+        if s.size < self.m.kink_min_samples or s[0] > tau - self.m.kink_min_pre_s:
             return None
         num, den = kink_fit(s, y, np.array([tau]), quadratic=key.endswith("-ins"))
         if not den[0] > 0:
@@ -868,7 +884,7 @@ class HypothesisLogic:
             if any(self.kink_sd[k].n < m.kink_min_learned for k in keys):
                 continue
             s, y = self.kink[keys[0]].arrays(ts)
-            if s.size < 8 or s[0] > -0.7 * m.kink_window_s:
+            if s.size < m.kink_min_samples or s[0] > -m.kink_min_fill_frac * m.kink_window_s:
                 continue
             taus = onsets(s, m.kink_min_pre_s, m.kink_min_post_s)
             if taus.size == 0:
