@@ -189,9 +189,14 @@ def imu_kernel(raw_t, raw_f, ht, hf, hn, ks, ki, started, integrate, t0, t_end, 
                 else:
                     ki[_KI_RING + (head + cnt) % _CADENCE_N] = dt
                     cnt += 1
-                for j in range(cnt):
-                    tmp[j] = ki[_KI_RING + (head + j) % _CADENCE_N]
-                iv_us = np.sort(tmp[:cnt])[cnt // 2]
+                for j in range(cnt):  # the ring in order (insertion: at most 9, no allocation), its median
+                    v = ki[_KI_RING + (head + j) % _CADENCE_N]
+                    p = j
+                    while p > 0 and tmp[p - 1] > v:
+                        tmp[p] = tmp[p - 1]
+                        p -= 1
+                    tmp[p] = v
+                iv_us = tmp[cnt // 2]
                 has_iv = True
             ki[_KI_CNT] = cnt
             ki[_KI_HEAD] = head
