@@ -328,20 +328,16 @@ class _Builder:
             yield s
 
     def _with_runs(self, tags, idx, verdicts, gaps, run_len, by_tag, make) -> Iterator[object]:
-        """:meth:`samples`' loop, with each run of IMU samples (``run_len[k]``
-        samples from merged position ``k``; 0 where none starts) as one
-        :class:`~.imurun.ImuRun`; every other item as that loop makes it."""
+        """:meth:`samples`' loop, with each run of IMU samples as one
+        :class:`~.imurun.ImuRun`; every other item as that loop makes it.
+        The lists hold the merged items outside runs and the first item of
+        each run, whose ``run_len`` is the run's length (0: not a run)."""
         st = self.stats
         samples = st.samples
         imu = by_tag.get(_IMU)
         imu_name = self.rec.imu.name if self.rec.imu is not None else ""
-        n = len(tags)
-        k = 0
-        while k < n:
-            m = run_len[k]
+        for tag, i, verdict, gap_s, m in zip(tags, idx, verdicts, gaps, run_len):
             if m:
-                i = idx[k]
-                gap_s = gaps[k]
                 if gap_s > 0.0:
                     t = imu[0][i]
                     st.gaps.append(GapRecord(IMU_STREAM, t, 0, gap_s))
@@ -349,10 +345,7 @@ class _Builder:
                     yield Gap(t_us=t, recv_s=t * 1e-6, boot=0, kind=IMU_STREAM, length_s=gap_s)
                 samples[IMU_STREAM] += m
                 yield ImuRun(imu[0], imu[2], i, i + m, imu_name)
-                k += m
                 continue
-            tag, i, verdict, gap_s = tags[k], idx[k], verdicts[k], gaps[k]
-            k += 1
             c = by_tag[tag]
             t = c[0][i]
             recv = t * 1e-6
@@ -397,8 +390,9 @@ class _Builder:
         """Every column's items merged by time (ties by tag): ``(first time (us),
         tags, indices, verdicts, gaps, run lengths)``, the middle four in that
         order, as lists; the duration and rates into the stats. With ``runs``,
-        the length of the run of IMU samples (see :func:`_imu_runs`) that
-        starts at each position (0: none), else None."""
+        the lists hold only the items outside runs of IMU samples (see
+        :func:`_imu_runs`) and the first of each run, with its length in the
+        last list (0: not a run); else that list is None."""
         st = self.stats
         ts = np.concatenate([c[0] for c in self.cols])
         tags = np.concatenate([np.full(c[0].size, c[1], dtype=np.int8) for c in self.cols])
@@ -417,8 +411,16 @@ class _Builder:
         dur = st.duration_s
         st.rates_hz = {k: (v / dur if dur > 0 else 0.0) for k, v in st.messages.items()}
         idx_o = idx[order]
-        run_len = _imu_runs(tags_o, idx_o, verdicts_a, gaps_a).tolist() if runs else None
-        return t0, tags_o.tolist(), idx_o.tolist(), verdicts_a.tolist(), gaps_a.tolist(), run_len
+        if not runs:
+            return t0, tags_o.tolist(), idx_o.tolist(), verdicts_a.tolist(), gaps_a.tolist(), None
+        run_len = _imu_runs(tags_o, idx_o, verdicts_a, gaps_a)
+        inside = np.zeros(run_len.size + 1, dtype=np.int64)  # +1 from a run's start, -1 after its end
+        starts = np.flatnonzero(run_len)
+        inside[starts] += 1
+        inside[starts + run_len[starts]] -= 1
+        keep = (np.cumsum(inside[:-1]) == 0) | (run_len > 0)
+        return (t0, tags_o[keep].tolist(), idx_o[keep].tolist(), verdicts_a[keep].tolist(), gaps_a[keep].tolist(),
+                run_len[keep].tolist())
 
     def _sample_makers(self) -> dict:
         """Per sample tag, ``(t, recv, column, i) -> (kind, sample)``."""
