@@ -496,20 +496,88 @@ def _parse_other(u, ULog, typ: int, data: bytes, header):
     return None
 
 
+class _Unkept(NamedTuple):
+    """The subscription of a topic mavnav does not keep: what is read of it
+    (pyulog's class would also flatten its format and build a numpy dtype)."""
+
+    multi_id: int
+    msg_id: int
+    message_name: str
+
+
+_MAX_FLAT_DEPTH = 32  # nested formats deeper than this get pyulog's own parse
+_MAX_FLAT_FIELDS = 100_000  # and formats that flatten to more fields
+
+
+class _FormatCheck:
+    """Whether pyulog's ``_MessageAddLogged`` parses a subscription of a
+    topic without raising, from the log's formats alone (memoised per type):
+    every nested type is defined, none refers back to itself, the field
+    names of each format are distinct, not empty and free of ``.``, ``[``
+    and ``]`` (so the flattened names are distinct: numpy's dtype accepts
+    them), and the whole flattens to a bounded number of fields. False
+    means "not shown safe", not "raises": such a subscription gets
+    pyulog's own parse."""
+
+    def __init__(self, formats: dict, base_types) -> None:
+        self.formats = formats
+        self.base = base_types
+        self.fields: Dict[str, int] = {}  # type -> flattened fields; -1: not shown safe
+
+    def ok(self, name: str) -> bool:
+        return self._count(name, 0) >= 0
+
+    def _count(self, name: str, depth: int) -> int:
+        n = self.fields.get(name)
+        if n is not None:
+            return n
+        fmt = self.formats.get(name)
+        if fmt is None or depth > _MAX_FLAT_DEPTH:
+            return -1
+        self.fields[name] = -1  # while it is being looked at: a type that refers back to itself fails
+        total = 0
+        seen = set()
+        for type_name, size, field in fmt.fields:
+            if not field or field in seen or "." in field or "[" in field or "]" in field:
+                return -1
+            seen.add(field)
+            k = 1 if type_name in self.base else self._count(type_name, depth + 1)
+            if k < 0:
+                return -1
+            total += k * (size if size > 0 else 1)
+            if total > _MAX_FLAT_FIELDS:
+                return -1
+        self.fields[name] = total
+        return total
+
+
 def _other_messages(u, ULog, buf: np.ndarray, offs: np.ndarray, sizes: np.ndarray, types: np.ndarray,
-                    stop: int) -> Tuple[List[_Other], Dict[int, int], int]:
+                    stop: int, light: bool = True) -> Tuple[List[_Other], Dict[int, int], int]:
     """Every message but data before ``stop``, in file order, through pyulog's
     own classes: ``(messages, msg_id -> offset of its subscription, stop)``,
-    ``stop`` moved back to a message pyulog's loop reports (or stops at)."""
+    ``stop`` moved back to a message pyulog's loop reports (or stops at).
+    With ``light``, the subscription of a topic not kept whose format
+    :class:`_FormatCheck` shows safe is read as an :class:`_Unkept` (its
+    ids and name: all that is used of it); ``light=False`` is the reference
+    (pyulog's class for every one), which ``tests/test_ingest_ulog_gather.py``
+    holds it to."""
     header = ULog._MessageHeader()
     others: List[_Other] = []
     since: Dict[int, int] = {}
     rest = (types != _MSG_D) & (offs < stop)
+    check = _FormatCheck(u._message_formats, ULog._UNPACK_TYPES) if light else None
+    kept = set(TOPICS)
     for o, n, typ in zip(offs[rest].tolist(), sizes[rest].tolist(), types[rest].tolist()):
         header.msg_size, header.msg_type = n, typ
         data = buf[o + 3:o + 3 + n].tobytes()
         try:
-            msg = _parse_other(u, ULog, typ, data, header)
+            msg = None
+            if check is not None and typ == _MSG_A and n >= 3:
+                name = ULog.parse_string(data[3:])
+                if name not in kept and check.ok(name):
+                    msg = _Unkept(data[0], data[1] | (data[2] << 8), name)
+            if msg is None:
+                msg = _parse_other(u, ULog, typ, data, header)
             if typ == _MSG_A:
                 if msg.msg_id in since:  # subscribed again: pyulog's loop replaces the first
                     raise ValueError("msg_id subscribed twice")
