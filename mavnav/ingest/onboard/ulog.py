@@ -429,7 +429,8 @@ def _data_section(u, ULog, buf: np.ndarray, start: int, last_back: int, printed:
     ``u`` is complete; else ``u`` is in the state pyulog's loop is in when
     it gets there) and the guard's ``_last_back`` there (``last_back``: at
     ``start``)."""
-    offs, stop, _, _ = _walk(buf, start, buf.size, _KNOWN_TYPES, _SYNC, last_back)
+    offs, stop, corrupt, walked_back = _walk(buf, start, buf.size, _KNOWN_TYPES, _SYNC, last_back)
+    walked_to = stop
     types = buf[offs + 2]
     sizes = _u16(buf, offs)
     short = (types == _MSG_D) & (sizes < 2)
@@ -444,8 +445,12 @@ def _data_section(u, ULog, buf: np.ndarray, start: int, last_back: int, printed:
     d_offs, d_sizes = offs[is_d], sizes[is_d]
     d_ids = _u16(buf, d_offs + 3)
     stop = _short_timestamp_stop(subs, since, d_ids, d_offs, stop)
-    # the walk again, to ``stop``: its recoveries before there only
-    _, _, corrupt, last_back = _walk(buf, start, stop, _KNOWN_TYPES, _SYNC, last_back)
+    # the walk again, to ``stop``: its recoveries before there only (the same
+    # walk when ``stop`` is where the first one stopped: it ends there too)
+    if stop == walked_to:
+        last_back = walked_back
+    else:
+        _, _, corrupt, last_back = _walk(buf, start, stop, _KNOWN_TYPES, _SYNC, last_back)
     if corrupt:
         u._file_corrupt = True
     if stop < buf.size:
