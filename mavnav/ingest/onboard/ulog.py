@@ -165,8 +165,8 @@ class _Guard:
             pos = self.tell()
             if n is None or n < 0 or pos + n > self.limit:
                 n = max(0, self.limit - pos)
-        b = super().read(n)
-        if n is not None and 0 <= len(b) < n and self.cut is None and not (n == 3 and not b) and n != 512:
+        b = _buffered_read(self, n)  # super().read(n) of _GuardedFile, without super()'s lookup (once per pyulog read)
+        if n is not None and len(b) < n and self.cut is None and not (n == 3 and not b) and n != 512:
             # 3: a header at the very end is a clean end; 512: pyulog's sync search chunk
             self.cut = (self.tell() - len(b), n, len(b))
         return b
@@ -192,6 +192,9 @@ class _Guard:
         if not self.closed and self.stopped_at is None:
             self.stopped_at = self.tell()
         super().close()
+
+
+_buffered_read = io.BufferedReader.read
 
 
 class _GuardedFile(_Guard, io.BufferedReader):
