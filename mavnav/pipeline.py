@@ -34,8 +34,9 @@ def run(
     when ``should_stop()`` turns true (checked between samples). Sinks are
     always closed, also on an exception or KeyboardInterrupt.
 
-    A source with a ``runs()`` stream (an onboard log: its IMU samples as
-    :class:`~.ingest.onboard.imurun.ImuRun` columns) is read through it when
+    A source whose class has a ``runs()`` stream (an onboard log: its IMU
+    samples as :class:`~.ingest.onboard.imurun.ImuRun` columns; not a wrapper
+    that passes attributes through) is read through it when
     there is no ``should_stop`` and every sink that watches samples takes
     runs (an ``imu_run`` hook): each run goes through the monitor and the
     sinks a slice at a time, up to the sample that completes an epoch, the
@@ -71,9 +72,10 @@ def run(
                 out.alarm(ev)
             epoch_out(on_report(report))
 
-    runs = getattr(source, "runs", None)
-    if runs is not None and should_stop is None and out.takes_runs():
-        source = runs()
+    # a source's own class must say it has runs: a wrapper that passes its
+    # attributes through (FaultedSource, whose faults act on each sample) does not
+    if callable(getattr(type(source), "runs", None)) and should_stop is None and out.takes_runs():
+        source = source.runs()
     try:
         for s in source:
             if type(s) is ImuRun:  # no home-frame change (not a height), not a reboot

@@ -106,6 +106,24 @@ def test_pipeline_through_runs_is_the_per_sample_fold(name, tmp_path):
 
 
 @pytest.mark.realdata
+def test_a_faulted_source_is_read_sample_by_sample():
+    """FaultedSource passes its attributes through (``runs`` too): the faults act on
+    each sample, so the pipeline must not read the source beneath through its runs."""
+    from mavnav.sim.effects import FaultedSource
+    from mavnav.sim.faults import parse_faults
+
+    p, rec = _record("frs_gps_interference.ulg")
+    cfg = config_from_dict({})
+    inner = _Counting(p, cfg.ingest, record=rec)
+    onset = int(rec.imu.t_us[0] * 1e-6) + 30
+    src = FaultedSource(inner, parse_faults([f"accel_bias_step:onset={onset},duration=20,magnitude=0.5"]))
+    sink = _Recorder(runs=True)
+    run(src, cfg, [AuditSink(), sink])
+    assert not hasattr(inner, "run_items")
+    assert src.injector.report()[0]["samples_modified"] > 1000
+
+
+@pytest.mark.realdata
 def test_audit_through_runs_equals_the_per_sample_audit(monkeypatch):
     p, _ = _record("frs_motor_failure_hexa.ulg")
     cfg = config_from_dict({})
