@@ -16,8 +16,9 @@ monitor) against the bare library pass over the same file: a pymavlink
 ``DFReader_binary`` + ``recv_msg()`` loop to the end, or ``pyulog.ULog(path)``;
 and the audit's two halves, each timed alone: *ingest* (decode the file and
 build every sample and event: ``read_record`` + the ``OnboardSource``
-stream) and *estimator* (the same pipeline as the audit over those samples,
-already built: epochs, the three filters, the monitor, the audit sink).
+stream, its IMU samples as runs of columns as the audit reads them) and
+*estimator* (the same pipeline as the audit over those samples, already
+built: epochs, the three filters, the monitor, the audit sink).
 Usage::
 
     .venv/bin/python bench/ingest.py [--minutes 10] [--repeat 3] [--onboard-dir ~/.cache/mavnav-flightlogs]
@@ -149,11 +150,25 @@ def mavnav_audit(path: Path) -> int:
 
 
 def mavnav_ingest(path: Path) -> list:
-    """Decode and every sample and event, as the audit's source makes them."""
+    """Decode and every sample and event, as the audit's source makes them
+    (the IMU samples as runs of columns, as the audit reads them)."""
     from mavnav.config import config_from_dict
     from mavnav.ingest.onboard.source import OnboardSource, read_record
 
-    return list(OnboardSource(path, config_from_dict({}).ingest, record=read_record(path)))
+    return list(OnboardSource(path, config_from_dict({}).ingest, record=read_record(path)).runs())
+
+
+class _Built:
+    """Samples already built, offered as the audit's source offers them (``runs``)."""
+
+    def __init__(self, items: list):
+        self.items = items
+
+    def __iter__(self):
+        return iter(self.items)
+
+    def runs(self):
+        return iter(self.items)
 
 
 def mavnav_estimator(samples: list) -> int:
@@ -162,7 +177,7 @@ def mavnav_estimator(samples: list) -> int:
     from mavnav.config import config_from_dict
     from mavnav.pipeline import run
 
-    return run(iter(samples), config_from_dict({}), [AuditSink()]).epochs
+    return run(_Built(samples), config_from_dict({}), [AuditSink()]).epochs
 
 
 def onboard_part(args) -> None:

@@ -63,6 +63,10 @@ class AuditSink(Sink):
         if kind is not None:
             self.input_counts[kind] += 1
 
+    def imu_run(self, run, i: int, j: int) -> None:
+        """``sample`` of IMU samples ``i .. j - 1`` of an onboard log's run (see :mod:`mavnav.sinks.base`)."""
+        self.input_counts[IMU] += j - i
+
     def epoch(self, r: EpochReport) -> None:
         self.epochs += 1
         for name, st in r.sources.items():

@@ -46,7 +46,7 @@ Pure: no clock, no I/O. ``push(sample)`` returns the epochs it completed;
 from __future__ import annotations
 
 import math
-from bisect import bisect_left, insort
+from bisect import bisect_left, bisect_right, insort
 from collections import Counter, deque
 from dataclasses import dataclass
 from typing import Optional, Union
@@ -189,9 +189,14 @@ def imu_kernel(raw_t, raw_f, ht, hf, hn, ks, ki, started, integrate, t0, t_end, 
                 else:
                     ki[_KI_RING + (head + cnt) % _CADENCE_N] = dt
                     cnt += 1
-                for j in range(cnt):
-                    tmp[j] = ki[_KI_RING + (head + j) % _CADENCE_N]
-                iv_us = np.sort(tmp[:cnt])[cnt // 2]
+                for j in range(cnt):  # the ring in order (insertion: at most 9, no allocation), its median
+                    v = ki[_KI_RING + (head + j) % _CADENCE_N]
+                    p = j
+                    while p > 0 and tmp[p - 1] > v:
+                        tmp[p] = tmp[p - 1]
+                        p -= 1
+                    tmp[p] = v
+                iv_us = tmp[cnt // 2]
                 has_iv = True
             ki[_KI_CNT] = cnt
             ki[_KI_HEAD] = head
@@ -429,6 +434,44 @@ class EpochBuilder:
         if not pending and t_us - self._epoch_t > self._max_gap_us():
             out.append(self._forced_epoch(t_us))
         return out
+
+    def _on_imu_run(self, ts: list, fs: list, i: int, j: int) -> tuple[int, list[Epoch]]:
+        """:meth:`_on_imu` over the samples ``ts[i:j]``, ``fs[i:j]`` (times
+        strictly increasing), up to the first that completes an epoch:
+        ``(k, epochs)``, samples ``i .. k - 1`` taken and the epochs the last
+        of them completed (at most ``_RAW_MAX`` samples per call). The same
+        state and epochs as :meth:`_on_imu` sample by sample
+        (``tests/test_ingest_imu_runs.py``)."""
+        last_t = self._last_imu_t
+        if last_t is not None and ts[i] <= last_t:  # not increasing: counted, as one sample
+            return i + 1, self._on_imu(ts[i], fs[i])
+        if j - i > _RAW_MAX:
+            j = i + _RAW_MAX
+        epoch_t = self._epoch_t
+        pending = self._pending_baro
+        if epoch_t is None:
+            k = j + 1  # not started: no epoch
+        elif pending:  # the first sample at or after the head baro completes its epoch
+            k = bisect_left(ts, pending[0].t_us, i, j) + 1
+        else:  # the first sample beyond the gap limit forces one
+            k = bisect_right(ts, epoch_t + self._max_gap_us(), i, j) + 1
+        ends = k <= j
+        if not ends:
+            k = j
+        self._raw_t += ts[i:k]
+        self._raw_f += fs[i:k]
+        t_us = ts[k - 1]
+        self._last_imu_t = t_us
+        if not ends:
+            if not pending and len(self._raw_t) >= _RAW_MAX:
+                self._take_imu()
+            return k, []
+        out: list[Epoch] = []
+        while pending and pending[0].t_us <= t_us:
+            out.append(self._epoch_at(pending.popleft()))
+        if not pending and t_us - self._epoch_t > self._max_gap_us():
+            out.append(self._forced_epoch(t_us))
+        return k, out
 
     def _take_imu(self) -> None:
         """Take the IMU samples waiting in ``_raw_t``/``_raw_f`` (see :meth:`_take_imu_reference`)."""

@@ -146,6 +146,20 @@ class Monitor:
             self._input_event("nominal", f"link recovered after {s.outage_s:.1f} s")
         return self._epochs(self.builder.push(s))
 
+    def push_run(self, ts: list, fs: list, i: int, j: int) -> tuple[int, list[tuple[EpochReport, list[AlarmEvent]]]]:
+        """:meth:`push` of the IMU samples ``ts[i:j]``, ``fs[i:j]`` (an
+        :class:`~mavnav.ingest.onboard.imurun.ImuRun`'s columns, times strictly
+        increasing) up to the first that completes an epoch: ``(k, epochs)``,
+        samples ``i .. k - 1`` consumed and the epochs the last of them
+        completed, as :meth:`push` of each in turn would return them."""
+        k, eps = self.builder._on_imu_run(ts, fs, i, j)
+        q = self._imu_times  # RateMeter.push of each, at once: the window ends at the last
+        q += ts[i:k]
+        limit = ts[k - 1] - _RATE_WINDOW_US
+        while q[0] <= limit:
+            q.popleft()
+        return k, (self._epochs(eps) if eps else eps)
+
     def _epochs(self, eps) -> list[tuple[EpochReport, list[AlarmEvent]]]:
         """The builder's starts and epochs, in order: the reports of the epochs."""
         out = []

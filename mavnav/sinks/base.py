@@ -17,6 +17,11 @@ class Sink:
       (``source`` description, ``mode``, ``config`` object, ``live`` flag).
     * ``sample(s)``: every sample and event from the source
       (:mod:`mavnav.samples` types), before the epochs it completes.
+    * ``imu_run(run, i, j)``, optional: the IMU samples ``i .. j - 1`` of an
+      :class:`~mavnav.ingest.onboard.imurun.ImuRun` (an onboard log's
+      columns), in place of ``sample`` for each (``run.samples(i, j)``
+      builds them). When a sink defines ``sample`` without ``imu_run``, the
+      pipeline reads the source sample by sample.
     * ``epoch(report)``: every filter epoch.
     * ``alarm(event)``: every change of a source's state.
     * ``close(summary)``: once, at the end (also after an interruption).
@@ -66,6 +71,10 @@ class SinkSet:
         self._on_sample = self._by_hook["sample"]
         self._on_epoch = self._by_hook["epoch"]
 
+    def takes_runs(self) -> bool:
+        """Whether every sink that watches samples takes IMU runs (``imu_run``)."""
+        return all(callable(getattr(s, "imu_run", None)) for s in self._on_sample)
+
     @property
     def active(self) -> list[Sink]:
         return list(self._sinks)
@@ -97,6 +106,15 @@ class SinkSet:
         for sink in self._on_sample:  # _call, inline: once per sample
             try:
                 sink.sample(s)
+            except Exception as exc:
+                self._drop(sink, "sample", exc)
+
+    def imu_run(self, run, i: int, j: int) -> None:
+        """The IMU samples ``i .. j - 1`` of ``run``, to every sink that
+        watches samples (all take runs: :meth:`takes_runs`)."""
+        for sink in self._on_sample:
+            try:
+                sink.imu_run(run, i, j)
             except Exception as exc:
                 self._drop(sink, "sample", exc)
 

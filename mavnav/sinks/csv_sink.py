@@ -122,6 +122,13 @@ class CsvSink(Sink):
         elif ts is ReferenceMoved:
             self._event(s.t_us, s.boot, f"home moved: {home_moved_text(s)}")
 
+    def imu_run(self, run, i: int, j: int) -> None:
+        """``sample`` of IMU samples ``i .. j - 1`` of an onboard log's run
+        (see :mod:`.base`): their receive times, the vehicle times in s."""
+        if self._flushed_recv_s is None:
+            self._flushed_recv_s = run.t_us[i] * 1e-6
+        self._recv_s = run.t_us[j - 1] * 1e-6
+
     def _event(self, t_us, boot, text: str) -> None:
         self._w.writerow(event_row(t_us, boot, text))
         self._pending += 1

@@ -64,6 +64,7 @@ from ...sensors import AUTOPILOT_STREAM, BARO_STREAM, GNSS_STREAM, IMU_STREAM, R
 from ..stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
 from ..vehicle_class import not_applicable_reason, notice_text
 from .head import read_head
+from .imurun import ImuRun
 from .record import OnboardRecord
 
 PathLike = Union[str, Path]
@@ -115,6 +116,13 @@ class OnboardSource:
     def __iter__(self) -> Iterator[object]:
         self.stats = IngestStats(source=str(self.path))
         return _Builder(self.record, self.config, self.stats).samples()
+
+    def runs(self) -> Iterator[object]:
+        """The same stream as iterating the source, but each stretch of
+        consecutive IMU samples as one :class:`~.imurun.ImuRun` (for
+        :func:`mavnav.pipeline.run`; the same stats)."""
+        self.stats = IngestStats(source=str(self.path))
+        return _Builder(self.record, self.config, self.stats).samples(runs=True)
 
 
 class _Builder:
@@ -280,13 +288,15 @@ class _Builder:
 
     # ------------------------------------------------------------------ merge
 
-    def samples(self) -> Iterator[object]:
+    def samples(self, runs: bool = False) -> Iterator[object]:
+        """Every sample and event in order; with ``runs``, each stretch of
+        consecutive IMU samples as one :class:`~.imurun.ImuRun`."""
         st = self.stats
         self._columns()
         if not self.cols:
             st.duration_s = 0.0
             return
-        t0_us, tags, idx, verdicts, gaps = self._merged_order()
+        t0_us, tags, idx, verdicts, gaps, run_len = self._merged_order(runs)
         by_tag = {c[1]: [a.tolist() if hasattr(a, "tolist") else a for a in c] for c in self.cols}
         if st.not_applicable:
             st.events["Notice"] += 1
@@ -295,6 +305,9 @@ class _Builder:
         st.events["ReferenceSet"] += len(self.refs)
         make = self._sample_makers()
         samples = st.samples
+        if run_len is not None:
+            yield from self._with_runs(tags, idx, verdicts, gaps, run_len, by_tag, make)
+            return
         for tag, i, verdict, gap_s in zip(tags, idx, verdicts, gaps):
             c = by_tag[tag]
             t = c[0][i]
@@ -305,6 +318,43 @@ class _Builder:
                 continue
             kind, s = make[tag](t, recv, c, i)
             if verdict:  # cannot happen after the decoder's sort; kept as the tlog rule
+                st.rejected[_VERDICT[verdict]] += 1
+                continue
+            if gap_s > 0.0:
+                st.gaps.append(GapRecord(kind, t, 0, gap_s))
+                st.events["Gap"] += 1
+                yield Gap(t_us=t, recv_s=recv, boot=0, kind=kind, length_s=gap_s)
+            samples[kind] += 1
+            yield s
+
+    def _with_runs(self, tags, idx, verdicts, gaps, run_len, by_tag, make) -> Iterator[object]:
+        """:meth:`samples`' loop, with each run of IMU samples as one
+        :class:`~.imurun.ImuRun`; every other item as that loop makes it.
+        The lists hold the merged items outside runs and the first item of
+        each run, whose ``run_len`` is the run's length (0: not a run)."""
+        st = self.stats
+        samples = st.samples
+        imu = by_tag.get(_IMU)
+        imu_name = self.rec.imu.name if self.rec.imu is not None else ""
+        for tag, i, verdict, gap_s, m in zip(tags, idx, verdicts, gaps, run_len):
+            if m:
+                if gap_s > 0.0:
+                    t = imu[0][i]
+                    st.gaps.append(GapRecord(IMU_STREAM, t, 0, gap_s))
+                    st.events["Gap"] += 1
+                    yield Gap(t_us=t, recv_s=t * 1e-6, boot=0, kind=IMU_STREAM, length_s=gap_s)
+                samples[IMU_STREAM] += m
+                yield ImuRun(imu[0], imu[2], i, i + m, imu_name)
+                continue
+            c = by_tag[tag]
+            t = c[0][i]
+            recv = t * 1e-6
+            if tag not in make:  # _RANGE_REJ, _IMU_REJ
+                st.events["Rejected"] += 1
+                yield self._rejected(tag, c, i, t, recv)
+                continue
+            kind, s = make[tag](t, recv, c, i)
+            if verdict:
                 st.rejected[_VERDICT[verdict]] += 1
                 continue
             if gap_s > 0.0:
@@ -336,10 +386,13 @@ class _Builder:
         st.damage = list(rec.damage)
         st.missing = rec.missing()
 
-    def _merged_order(self) -> tuple:
+    def _merged_order(self, runs: bool = False) -> tuple:
         """Every column's items merged by time (ties by tag): ``(first time (us),
-        tags, indices, verdicts, gaps)``, the last four in that order, as lists;
-        the duration and rates into the stats."""
+        tags, indices, verdicts, gaps, run lengths)``, the middle four in that
+        order, as lists; the duration and rates into the stats. With ``runs``,
+        the lists hold only the items outside runs of IMU samples (see
+        :func:`_imu_runs`) and the first of each run, with its length in the
+        last list (0: not a run); else that list is None."""
         st = self.stats
         ts = np.concatenate([c[0] for c in self.cols])
         tags = np.concatenate([np.full(c[0].size, c[1], dtype=np.int8) for c in self.cols])
@@ -357,7 +410,17 @@ class _Builder:
         st.duration_s = (t1 - t0) / 1e6
         dur = st.duration_s
         st.rates_hz = {k: (v / dur if dur > 0 else 0.0) for k, v in st.messages.items()}
-        return t0, tags[order].tolist(), idx[order].tolist(), verdicts_a.tolist(), gaps_a.tolist()
+        idx_o = idx[order]
+        if not runs:
+            return t0, tags_o.tolist(), idx_o.tolist(), verdicts_a.tolist(), gaps_a.tolist(), None
+        run_len = _imu_runs(tags_o, idx_o, verdicts_a, gaps_a)
+        inside = np.zeros(run_len.size + 1, dtype=np.int64)  # +1 from a run's start, -1 after its end
+        starts = np.flatnonzero(run_len)
+        inside[starts] += 1
+        inside[starts + run_len[starts]] -= 1
+        keep = (np.cumsum(inside[:-1]) == 0) | (run_len > 0)
+        return (t0, tags_o[keep].tolist(), idx_o[keep].tolist(), verdicts_a[keep].tolist(), gaps_a[keep].tolist(),
+                run_len[keep].tolist())
 
     def _sample_makers(self) -> dict:
         """Per sample tag, ``(t, recv, column, i) -> (kind, sample)``."""
@@ -392,6 +455,29 @@ class _Builder:
         imu_name = rec.imu.name if rec.imu is not None else ""
         return Rejected(recv, "no_attitude", f"{imu_name}: no attitude within {self.cfg.attitude_max_age_s} s", t, 0,
                         sensor=IMU_STREAM)
+
+
+def _imu_runs(tags: np.ndarray, idx: np.ndarray, verdicts: np.ndarray, gaps: np.ndarray) -> np.ndarray:
+    """Per merged position, the length of the run of IMU samples that starts
+    there (0: none): consecutive ``_IMU`` items that the guard passed, a new
+    run at each gap (its :class:`~mavnav.samples.Gap` comes first). A run's
+    column indices are consecutive (the merge is stable, the IMU column in
+    time order); a position where they would not be is left to the
+    per-sample loop."""
+    n = tags.size
+    out = np.zeros(n, dtype=np.int64)
+    ok = (tags == _IMU) & (verdicts == 0)
+    if not ok.any():
+        return out
+    start = ok.copy()
+    start[1:] &= ~ok[:-1] | (gaps[1:] > 0.0)
+    s = np.flatnonzero(start)
+    brk = np.flatnonzero(~ok | start)
+    brk = np.append(brk, n)
+    e = brk[np.searchsorted(brk, s, side="right")]
+    contiguous = idx[e - 1] - idx[s] == e - 1 - s
+    out[s[contiguous]] = (e - s)[contiguous]
+    return out
 
 
 @njit(cache=True)

@@ -165,8 +165,8 @@ class _Guard:
             pos = self.tell()
             if n is None or n < 0 or pos + n > self.limit:
                 n = max(0, self.limit - pos)
-        b = super().read(n)
-        if n is not None and 0 <= len(b) < n and self.cut is None and not (n == 3 and not b) and n != 512:
+        b = _buffered_read(self, n)  # super().read(n) of _GuardedFile, without super()'s lookup (once per pyulog read)
+        if n is not None and len(b) < n and self.cut is None and not (n == 3 and not b) and n != 512:
             # 3: a header at the very end is a clean end; 512: pyulog's sync search chunk
             self.cut = (self.tell() - len(b), n, len(b))
         return b
@@ -192,6 +192,9 @@ class _Guard:
         if not self.closed and self.stopped_at is None:
             self.stopped_at = self.tell()
         super().close()
+
+
+_buffered_read = io.BufferedReader.read
 
 
 class _GuardedFile(_Guard, io.BufferedReader):
@@ -429,7 +432,8 @@ def _data_section(u, ULog, buf: np.ndarray, start: int, last_back: int, printed:
     ``u`` is complete; else ``u`` is in the state pyulog's loop is in when
     it gets there) and the guard's ``_last_back`` there (``last_back``: at
     ``start``)."""
-    offs, stop, _, _ = _walk(buf, start, buf.size, _KNOWN_TYPES, _SYNC, last_back)
+    offs, stop, corrupt, walked_back = _walk(buf, start, buf.size, _KNOWN_TYPES, _SYNC, last_back)
+    walked_to = stop
     types = buf[offs + 2]
     sizes = _u16(buf, offs)
     short = (types == _MSG_D) & (sizes < 2)
@@ -444,8 +448,12 @@ def _data_section(u, ULog, buf: np.ndarray, start: int, last_back: int, printed:
     d_offs, d_sizes = offs[is_d], sizes[is_d]
     d_ids = _u16(buf, d_offs + 3)
     stop = _short_timestamp_stop(subs, since, d_ids, d_offs, stop)
-    # the walk again, to ``stop``: its recoveries before there only
-    _, _, corrupt, last_back = _walk(buf, start, stop, _KNOWN_TYPES, _SYNC, last_back)
+    # the walk again, to ``stop``: its recoveries before there only (the same
+    # walk when ``stop`` is where the first one stopped: it ends there too)
+    if stop == walked_to:
+        last_back = walked_back
+    else:
+        _, _, corrupt, last_back = _walk(buf, start, stop, _KNOWN_TYPES, _SYNC, last_back)
     if corrupt:
         u._file_corrupt = True
     if stop < buf.size:
@@ -496,20 +504,88 @@ def _parse_other(u, ULog, typ: int, data: bytes, header):
     return None
 
 
+class _Unkept(NamedTuple):
+    """The subscription of a topic mavnav does not keep: what is read of it
+    (pyulog's class would also flatten its format and build a numpy dtype)."""
+
+    multi_id: int
+    msg_id: int
+    message_name: str
+
+
+_MAX_FLAT_DEPTH = 32  # nested formats deeper than this get pyulog's own parse
+_MAX_FLAT_FIELDS = 100_000  # and formats that flatten to more fields
+
+
+class _FormatCheck:
+    """Whether pyulog's ``_MessageAddLogged`` parses a subscription of a
+    topic without raising, from the log's formats alone (memoised per type):
+    every nested type is defined, none refers back to itself, the field
+    names of each format are distinct, not empty and free of ``.``, ``[``
+    and ``]`` (so the flattened names are distinct: numpy's dtype accepts
+    them), and the whole flattens to a bounded number of fields. False
+    means "not shown safe", not "raises": such a subscription gets
+    pyulog's own parse."""
+
+    def __init__(self, formats: dict, base_types) -> None:
+        self.formats = formats
+        self.base = base_types
+        self.fields: Dict[str, int] = {}  # type -> flattened fields; -1: not shown safe
+
+    def ok(self, name: str) -> bool:
+        return self._count(name, 0) >= 0
+
+    def _count(self, name: str, depth: int) -> int:
+        n = self.fields.get(name)
+        if n is not None:
+            return n
+        fmt = self.formats.get(name)
+        if fmt is None or depth > _MAX_FLAT_DEPTH:
+            return -1
+        self.fields[name] = -1  # while it is being looked at: a type that refers back to itself fails
+        total = 0
+        seen = set()
+        for type_name, size, field in fmt.fields:
+            if not field or field in seen or "." in field or "[" in field or "]" in field:
+                return -1
+            seen.add(field)
+            k = 1 if type_name in self.base else self._count(type_name, depth + 1)
+            if k < 0:
+                return -1
+            total += k * (size if size > 0 else 1)
+            if total > _MAX_FLAT_FIELDS:
+                return -1
+        self.fields[name] = total
+        return total
+
+
 def _other_messages(u, ULog, buf: np.ndarray, offs: np.ndarray, sizes: np.ndarray, types: np.ndarray,
-                    stop: int) -> Tuple[List[_Other], Dict[int, int], int]:
+                    stop: int, light: bool = True) -> Tuple[List[_Other], Dict[int, int], int]:
     """Every message but data before ``stop``, in file order, through pyulog's
     own classes: ``(messages, msg_id -> offset of its subscription, stop)``,
-    ``stop`` moved back to a message pyulog's loop reports (or stops at)."""
+    ``stop`` moved back to a message pyulog's loop reports (or stops at).
+    With ``light``, the subscription of a topic not kept whose format
+    :class:`_FormatCheck` shows safe is read as an :class:`_Unkept` (its
+    ids and name: all that is used of it); ``light=False`` is the reference
+    (pyulog's class for every one), which ``tests/test_ingest_ulog_gather.py``
+    holds it to."""
     header = ULog._MessageHeader()
     others: List[_Other] = []
     since: Dict[int, int] = {}
     rest = (types != _MSG_D) & (offs < stop)
+    check = _FormatCheck(u._message_formats, ULog._UNPACK_TYPES) if light else None
+    kept = set(TOPICS)
     for o, n, typ in zip(offs[rest].tolist(), sizes[rest].tolist(), types[rest].tolist()):
         header.msg_size, header.msg_type = n, typ
         data = buf[o + 3:o + 3 + n].tobytes()
         try:
-            msg = _parse_other(u, ULog, typ, data, header)
+            msg = None
+            if check is not None and typ == _MSG_A and n >= 3:
+                name = ULog.parse_string(data[3:])
+                if name not in kept and check.ok(name):
+                    msg = _Unkept(data[0], data[1] | (data[2] << 8), name)
+            if msg is None:
+                msg = _parse_other(u, ULog, typ, data, header)
             if typ == _MSG_A:
                 if msg.msg_id in since:  # subscribed again: pyulog's loop replaces the first
                     raise ValueError("msg_id subscribed twice")
@@ -571,12 +647,31 @@ def _fill_buffers(u, buf: np.ndarray, subs: dict, known: np.ndarray, d_ids: np.n
             o = o[fits]
         if not o.size:
             continue
-        rows_b = buf[(o + 5)[:, None] + np.arange(item, dtype=np.int64)]
+        rows_b = _gather_rows(buf, o + 5, item)
         sub.buffer += rows_b.tobytes()
         t = sub.timestamp_offset
         ts_off.append(o)
         ts_val.append(np.ascontiguousarray(rows_b[:, t:t + 8]).view("<u8").reshape(-1))
     return np.concatenate(ts_off), np.concatenate(ts_val)
+
+
+@njit(cache=True)
+def _gather_rows(buf, starts, item):  # pragma: no cover - compiled
+    """``item`` bytes of ``buf`` from each of ``starts``, as rows: what
+    :func:`_gather_rows_reference` indexes, copied row by row
+    (``tests/test_ingest_ulog.py`` checks the two agree)."""
+    out = np.empty((starts.shape[0], item), np.uint8)
+    for r in range(starts.shape[0]):
+        s = starts[r]
+        if s < 0 or s + item > buf.size:
+            raise IndexError("a row beyond the buffer")
+        out[r, :] = buf[s:s + item]
+    return out
+
+
+def _gather_rows_reference(buf: np.ndarray, starts: np.ndarray, item: int) -> np.ndarray:
+    """The readable form of :func:`_gather_rows`: one fancy index over every byte."""
+    return buf[starts[:, None] + np.arange(item, dtype=np.int64)]
 
 
 def _last_timestamps(start_ts: int, ro: np.ndarray, rt: np.ndarray) -> Callable[[int], int]:
