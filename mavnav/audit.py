@@ -38,7 +38,7 @@ def required_rates_hz(cfg: Config) -> dict[str, float]:
     """Input rates the time-to-alarm needs (the monitor's own rule)."""
     m = cfg.monitor
     aux = max(m.alarm_rejections, 1) / m.time_to_alarm_s
-    return {IMU: 10.0, BARO: 5.0, GNSS: aux, RANGEFINDER: aux}
+    return {IMU: m.min_imu_rate_hz, BARO: m.min_baro_rate_hz, GNSS: aux, RANGEFINDER: aux}
 
 
 class AuditSink(Sink):

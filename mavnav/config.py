@@ -263,6 +263,14 @@ class MonitorConfig(_Section):
     delta_gnss_m: float = Field(10.0, gt=0)
     delta_ra_m: float = Field(5.0, gt=0)
     time_to_alarm_s: float = Field(1.0, gt=0)
+    # The input rates the time-to-alarm needs besides the aux sensors': an IMU
+    # below min_imu_rate_hz is too sparse to integrate between baro samples (its
+    # snapshots miss the motion), a baro below min_baro_rate_hz too slow to show
+    # a step in time. Below either, monitoring is degraded (unavailable); below
+    # the IMU's, the INS is no witness either: its tests may put the baro in
+    # caution, never in alarm (slow inputs never make a sensor faulty).
+    min_imu_rate_hz: float = Field(10.0, gt=0)
+    min_baro_rate_hz: float = Field(5.0, gt=0)
     features: AdaptiveFeatures = AdaptiveFeatures()
     # Probability of a false alarm of one channel-comparison test (two-sided normal).
     false_alarm_prob: float = Field(1e-5, gt=0, lt=0.5)

@@ -211,9 +211,10 @@ class Monitor:
         self._rates_checked_us = t_us
         m = self.mcfg
         need_aux = max(m.alarm_rejections, 1) / m.time_to_alarm_s
-        need = {"imu": 10.0, "baro": 5.0, "gnss": need_aux, "rng": need_aux}
+        need = {"imu": m.min_imu_rate_hz, "baro": m.min_baro_rate_hz, "gnss": need_aux, "rng": need_aux}
         slow = []
         since_start = (t_us - self.logic.t0_us) * 1e-6
+        slow_imu_hz = None
         if since_start >= _RATE_WINDOW_US * 1e-6:
             for k, meter in self.rates.items():
                 r = meter.rate_hz(t_us)
@@ -221,6 +222,9 @@ class Monitor:
                     continue  # absent inputs are the channels' business (unavailable)
                 if r < 0.9 * need[k]:  # 10 % tolerance: a nominal 10 Hz stream jitters
                     slow.append(f"{k} {r:.1f} Hz < {need[k]:.0f}")
+                    if k == "imu":
+                        slow_imu_hz = r
+        self.logic.slow_imu_hz = slow_imu_hz  # the INS tests' witness is too sparse to judge the baro
         if slow:
             # slow inputs make monitoring unavailable at the required time-to-alarm; they never make a sensor faulty
             return self.input.set("unavailable", t_us, "monitoring degraded, too slow for the %.1f s time-to-alarm: %s"

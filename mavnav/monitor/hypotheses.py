@@ -152,6 +152,7 @@ class HypothesisLogic:
         self.last_seen_us: dict[int, Optional[int]] = {GNSS: None, RNG: None}
         self.last_baro_us = t_us
         self.last_baro_m: Optional[float] = None
+        self.slow_imu_hz: Optional[float] = None  # set by the core's rate check: the IMU below min_imu_rate_hz
         self.last_z = {"gnss": math.nan, "rangefinder": math.nan, "baro_ins": math.nan}
         self.consistent_since: dict[str, Optional[int]] = {s: None for s in SENSOR_SOURCES}
         self.warm_until = {s: t_us + self.warmup_us for s in SENSOR_SOURCES}
@@ -977,7 +978,7 @@ class HypothesisLogic:
         self.envelope_failing = envelope is not None  # also holds back the rangefinder's readmission
         if "rangefinder" in self.excluded:
             envelope = None
-        ins_tests = (self._ins_verdict(t), self._ins_doppler_verdict(t))
+        ins_tests = (self._slow_ins(self._ins_verdict(t)), self._slow_ins(self._ins_doppler_verdict(t)))
         # an INS test that is not passing puts the INS among what an aux channel's
         # innovations can mean (the channel runs on it between its samples)
         self.ins_doubt = any(v is not None and v.level != "pass" for v in ins_tests)
@@ -985,9 +986,20 @@ class HypothesisLogic:
         verdicts = [v for v in (*aux, *ins_tests, self._raw_verdict(), envelope, self._doppler_verdict(t),
                                 self._baro_doppler_verdict(t))
                     if v is not None] + self._level_verdicts(t)
-        if self.f.kink_isolation:
+        if self.f.kink_isolation and self.slow_imu_hz is None:  # the INS witnesses the kinks
             verdicts += self._kink_verdicts(t, aux)
         return verdicts, aux
+
+    def _slow_ins(self, v: Optional[Verdict]) -> Optional[Verdict]:
+        """An INS test's failure while the IMU runs below ``min_imu_rate_hz``
+        (the core's rate check says so) is a suspect: snapshots that sparse miss
+        the motion between them, so the INS cannot tell a baro or GNSS fault from
+        its own gaps, and a slow input never makes a sensor faulty."""
+        hz = self.slow_imu_hz
+        if v is None or hz is None or v.level != "fail":
+            return v
+        return dataclasses.replace(v, level="suspect",
+                                   text=f"{v.text}; the IMU at {hz:.1f} Hz is too sparse to judge it")
 
     def _fuse(self, j: Judgement, avail) -> tuple[float, float, tuple]:
         """The fused height of the channels the evidence clears (NaN: none)."""
