@@ -275,6 +275,8 @@ def _part1(res: dict) -> dict:
         "caution_share": {s: avail[s]["caution"] for s in SENSOR_SOURCES if s in avail},
         "rms_m": res["fused_vs_autopilot_rms_m"],
         "max_m": res["fused_vs_autopilot_max_m"],
+        "mean_m": res["fused_vs_autopilot_mean_m"],
+        "sd_m": res["fused_vs_autopilot_sd_m"],
         "used": avail.get("channels_used", {}),
         "samples": {k: ing["samples"].get(k, 0) for k in ("gnss", "baro", "range")},
         "notes": res["notes"],
@@ -400,8 +402,8 @@ def report(groups: Dict[str, List[Path]], results: List[dict], wall: float, args
     p("## 1. Each flight as it is (adaptive mode)")
     p("")
     p("| flight | kind | min | vehicle | imu/baro/gnss/rng Hz | gnss N/C/U/A % | rng N/C/U/A % | baro N/C/U/A % | "
-      "overall N/C/U/A % | alarms/h | fused-AP RMS / max m | used g/r/b % |")
-    p("|---|---|---|---|---|---|---|---|---|---|---|---|")
+      "overall N/C/U/A % | alarms/h | fused-AP RMS / max m | fused-AP mean / sd m | used g/r/b % |")
+    p("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     tot = Counter()
     for r in ok:
         a = r["audit"]
@@ -422,11 +424,13 @@ def report(groups: Dict[str, List[Path]], results: List[dict], wall: float, args
         if a["rms_m"] is not None:
             tot["sq"] += a["rms_m"] ** 2 * a["duration_s"]
             tot["sq_t"] += a["duration_s"]
+            tot["var"] += (a.get("sd_m") or 0.0) ** 2 * a["duration_s"]
         u = a["used"]
         p(f"| {Path(r['path']).name} | {'SITL' if r['sitl'] else 'real'} | {a['duration_s'] / 60:.1f} | {a['vehicle']} | "
           f"{rt['imu']:.0f}/{rt['baro']:.0f}/{rt['gnss']:.1f}/{rt['rangefinder']:.0f} | {ncua('gnss')} | "
           f"{ncua('rangefinder')} | {ncua('baro_ins')} | {ncua('overall')} | "
           f"{a['alarm_events'] / dur_h if dur_h > 0 else 0:.1f} | {fmt(a['rms_m'])} / {fmt(a['max_m'])} | "
+          f"{fmt(a.get('mean_m'))} / {fmt(a.get('sd_m'))} | "
           f"{pct(u.get('gnss'))}/{pct(u.get('rangefinder'))}/{pct(u.get('baro'))} |")
     hours = tot["h"]
     p("")
@@ -441,7 +445,8 @@ def report(groups: Dict[str, List[Path]], results: List[dict], wall: float, args
                                       for k in ("nominal", "caution", "unavailable", "alarm"))
       + " % nominal/caution/unavailable/alarm"
       + f"; fused vs autopilot RMS (time-weighted) "
-      f"{math.sqrt(tot['sq'] / tot['sq_t']) if tot['sq_t'] else float('nan'):.2f} m.")
+      f"{math.sqrt(tot['sq'] / tot['sq_t']) if tot['sq_t'] else float('nan'):.2f} m, of which what varies "
+      f"(each flight's own datum offset taken out) {math.sqrt(tot['var'] / tot['sq_t']) if tot['sq_t'] else float('nan'):.2f} m.")
     p("")
     p(rangefinder_lines(ok, faults=not args.no_faults))
     faulted = [row for r in ok for row in r.get("faults", [])]

@@ -54,6 +54,7 @@ class AuditSink(Sink):
         self.alarms: list[dict] = []
         self._open: dict[tuple[int, str], list[dict]] = {}
         self.sq_err = 0.0
+        self.sum_err = 0.0
         self.n_err = 0
         self.max_abs_err = 0.0
         self.input_counts: Counter = Counter()
@@ -78,6 +79,7 @@ class AuditSink(Sink):
         d = r.height_fused_m - r.autopilot_height_ref_m
         if d == d:
             self.sq_err += d * d
+            self.sum_err += d
             self.n_err += 1
             self.max_abs_err = max(self.max_abs_err, abs(d))
 
@@ -145,6 +147,11 @@ def audit_file(path: str | Path, cfg: Config, sysid: Optional[int] = None,
         "availability": sink.availability(),
         "fused_vs_autopilot_rms_m": (round(math.sqrt(sink.sq_err / sink.n_err), 4) if sink.n_err else None),
         "fused_vs_autopilot_max_m": (round(sink.max_abs_err, 4) if sink.n_err else None),
+        # the RMS split into its constant part (the two heights' datums: the
+        # autopilot's origin against mavnav's reference) and what varies
+        "fused_vs_autopilot_mean_m": (round(sink.sum_err / sink.n_err, 4) if sink.n_err else None),
+        "fused_vs_autopilot_sd_m": (round(math.sqrt(max(sink.sq_err / sink.n_err - (sink.sum_err / sink.n_err) ** 2,
+                                                        0.0)), 4) if sink.n_err else None),
         "epochs": summary.epochs,
         "reboots": summary.reboots,
         "mode": cfg.monitor.mode,
