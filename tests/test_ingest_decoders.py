@@ -1,16 +1,19 @@
 """The per-message decoders on their own (mavnav.ingest.decoders), on messages
 encoded by pymavlink and decoded back (pymavlink's CRC-checked parse, then the
-normaliser's own payload decoder)."""
+normaliser's own payload decoder), and the HIGHRES_IMU hot path of the
+normaliser against its decoder."""
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as dialect
 
+from mavnav.config import IngestConfig
 from mavnav.constants import G0_MPS2
-from mavnav.ingest import wire
+from mavnav.ingest import TlogSource, wire
 from mavnav.ingest.decoders import (
     GNSS_NO_ELLIPSOID_ALT,
     GNSS_NO_FIX,
@@ -27,7 +30,8 @@ from mavnav.ingest.decoders import (
     decode_raw_imu,
     decode_scaled_imu,
 )
-from tests.support.flightlog import MAV_AUTOPILOT_ARDUPILOTMEGA, MAV_AUTOPILOT_PX4
+from mavnav.ingest.normaliser import Normaliser
+from tests.support.flightlog import MAV_AUTOPILOT_ARDUPILOTMEGA, MAV_AUTOPILOT_PX4, FlightLog
 
 MAV = dialect.MAVLink(None, srcSystem=1, srcComponent=1)
 MG = G0_MPS2 / 1000.0
@@ -170,3 +174,48 @@ def test_scaled_imu_is_milli_g_with_its_boot_time(which):
     assert type(r) is ImuReading and (r.name, r.t_raw, r.usec) == (which, 4_321_000, False)
     assert r.fb == pytest.approx((0.0, 0.25 * G0_MPS2, -G0_MPS2))
     assert r.fb[2] == -1000 * MG
+
+
+# ------------------------------------------------------------------ the normaliser's HIGHRES_IMU hot path
+
+
+def _stream(path: Path) -> tuple[list[str], dict]:
+    src = TlogSource(path, IngestConfig())
+    return [repr(s) for s in src], src.stats.to_dict()
+
+
+def _odd_highres_log(tmp_path) -> Path:
+    """HIGHRES_IMU of every kind the decoder tells apart, and the source choice
+    made while some are refused."""
+    f = FlightLog(tmp_path / "odd.tlog")
+    f.heartbeat(0.0)
+    odd = [(math.nan, 0.0, -9.8), (0.0, 0.0, -600.0), (0.0, math.inf, 0.0), (490.0, 0.0, -9.8), (600.0, 0.0, -9.8),
+           (0.0, -491.0, -9.8), (0.0, 0.0, math.nan)]
+    for k in range(200):
+        t = k * 0.01
+        if k % 2 == 0:
+            f.attitude(t, 0.1, -0.05, 0.3)
+        acc = odd[k // 7 % len(odd)] if k % 7 == 3 else (0.1, 0.2, -9.8)
+        updated = 0b111000 if k % 11 == 5 else (0 if k % 13 == 0 else 0b111)
+        f.highres(t + 0.005, acc, updated=updated)
+        if k % 5 == 0:
+            f.pressure(t, 100_000.0 - k)
+    return f.close()
+
+
+REPO = Path(__file__).resolve().parents[1]
+PX4_LOGS = sorted((REPO / "sitl_logs").glob("px4_*.tlog"))[:2]
+
+
+@pytest.mark.parametrize("which", ["odd"] + [p.name for p in PX4_LOGS])
+def test_highres_imu_inline_matches_its_decoder(which, tmp_path, monkeypatch):
+    path = _odd_highres_log(tmp_path) if which == "odd" else REPO / "sitl_logs" / which
+    fast = _stream(path)
+    monkeypatch.setattr(Normaliser, "_highres_imu", Normaliser._highres_imu_reference)
+    ref = _stream(path)
+    assert fast[1]["samples"].get("imu", 0) > 0
+    if which == "odd":  # every path was taken
+        assert fast[1]["rejected"]["nan"] > 0 and fast[1]["rejected"]["impossible"] > 0
+        assert fast[1]["filtered"]["imu_accel_not_updated"] > 0
+    assert fast[0] == ref[0]
+    assert fast[1] == ref[1]

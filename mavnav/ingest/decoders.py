@@ -18,6 +18,10 @@ What the rules are, and why, is in the :mod:`.normaliser` module docstring;
 the rangefinder's decoder is :func:`.rangecheck.decode_reading`. The
 normaliser keeps the clock, the references, the source choice and the
 stream discipline.
+
+The IMU's hot path (HIGHRES_IMU, every frame of a PX4 log) does the same
+arithmetic inline in :meth:`.normaliser.Normaliser._highres_imu`;
+``tests/test_ingest_decoders.py`` checks the two agree.
 """
 
 from __future__ import annotations
