@@ -7,7 +7,8 @@ for live bytes) finds and CRC-checks MAVLink frames; one
 and :class:`LiveSource` are thin loops around the two; they share every
 rule, so a replayed log and the same log streamed live give the same samples.
 
-Only :mod:`.normaliser` knows MAVLink field names. Onboard logs (ArduPilot
+Only :mod:`.normaliser` and its decoders (:mod:`.decoders`, :mod:`.rangecheck`)
+know MAVLink field names. Onboard logs (ArduPilot
 DataFlash, PX4 ULog) are decoded into columns by :mod:`.onboard` and turned
 into the same samples by :class:`~.onboard.source.OnboardSource`;
 :func:`~.logs.open_log` picks the source for a file by its content.

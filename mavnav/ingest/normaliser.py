@@ -1,4 +1,4 @@
-"""MAVLink messages -> mavnav samples: the only place that knows MAVLink field names.
+"""MAVLink messages -> mavnav samples: with its decoders, the only place that knows MAVLink field names.
 
 One :class:`Normaliser` per link (a live connection or one tlog) is fed
 decoded-on-demand frames ``(recv_s, msgid, sysid, compid, payload)`` by a
@@ -12,9 +12,10 @@ strictly increases.
 
 Decisions the issue left open (see also the module docs of :mod:`.clock`,
 :mod:`.attitude`, :mod:`.references`, :mod:`.streams`). Stages of their own:
-the time base (:mod:`.timebase`), the height references (:mod:`.heightref`),
-the rangefinder's checks (:mod:`.rangecheck`), and the other systems on the
-link and what is said about them (:mod:`.systems`):
+the per-message decoders, a reading or why not (:mod:`.decoders`), the time
+base (:mod:`.timebase`), the height references (:mod:`.heightref`), the
+rangefinder's checks (:mod:`.rangecheck`), and the other systems on the link
+and what is said about them (:mod:`.systems`):
 
 * **Vehicle.** The first HEARTBEAT with ``autopilot != MAV_AUTOPILOT_INVALID``
   and ``type != MAV_TYPE_GCS`` selects the system (or the ``sysid`` given).
@@ -98,7 +99,6 @@ from collections import deque
 from typing import Deque, List, NamedTuple, Optional, Sequence
 
 from ..config import IngestConfig
-from ..constants import G0_MPS2
 from ..frames import cos_tilt, down_row_from_quat, f_up_from_body, quat_from_euler
 from ..samples import (
     AutopilotHeight,
@@ -120,19 +120,17 @@ from . import wire
 from .attitude import AttitudeInterpolator
 from .heightref import GNSS_FIXED, BaroItem, GnssItem, HeightReferences
 from .clock import HOLD
-from .rangecheck import RangeChecks, Refusal
+from .decoders import (HIGHRES_IMU_ACCEL_BITS, MAX_SPECIFIC_FORCE_MPS2, GnssReading, Refusal, Skipped,
+                       decode_gps_raw_int, decode_highres_imu, decode_pressure, decode_raw_imu, decode_scaled_imu)
+from .rangecheck import RangeChecks
 from .timebase import BEHIND_US, SETTLED, ClockStepped, NewBoot, Placed, TimeBase
 from .stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
 from .streams import KindGuard, SourceSelector
-from .systems import MAV_AUTOPILOT_ARDUPILOTMEGA, OtherSystems, describe_system, is_vehicle_heartbeat
+from .systems import OtherSystems, describe_system, is_vehicle_heartbeat
 from .vehicle_class import is_height_input, not_applicable_reason, notice_text
 
-MILLI_G_MPS2 = G0_MPS2 / 1000.0
 MAV_COMP_ID_AUTOPILOT1 = 1
 MAV_SENSOR_ROTATION_PITCH_270 = 25  # downward
-UINT32_MAX = 0xFFFFFFFF
-MAX_SPECIFIC_FORCE_MPS2 = 50 * G0_MPS2  # beyond any airframe IMU range
-MAX_PRESSURE_PA = 2.0e7  # 200 bar: deeper than any ROV depth sensor reads
 HOME_UNSET_MM = 50  # GLOBAL_POSITION_INT alt - relative_alt below this: ArduPilot's home not yet set
 PRE_IMU_HOLD_US = 5_000_000  # at most this long do measurements wait for the first IMU sample of a boot
 GATED = frozenset((BARO_STREAM, GNSS_STREAM, RANGE_STREAM))
@@ -491,41 +489,51 @@ class Normaliser:
         self.att.add(t_us, q)
 
     def _highres_imu(self, f, recv_s, compid) -> None:
+        """:meth:`_highres_imu_reference` with a valid reading's decoding inline
+        (:func:`.decoders.decode_highres_imu`: a new accelerometer sample, each
+        axis finite and within 50 g), the IMU's hot path on PX4; skips and
+        refusals go through the decoder. ``tests/test_ingest_decoders.py``
+        checks the two give the same stream."""
         upd = f["fields_updated"]
-        if upd and not (upd & 0b111):
-            self.stats.filtered["imu_accel_not_updated"] += 1
+        x, y, z = f["xacc"], f["yacc"], f["zacc"]  # m/s^2, body FRD
+        m = MAX_SPECIFIC_FORCE_MPS2
+        if (not upd or upd & HIGHRES_IMU_ACCEL_BITS) and -m <= x <= m and -m <= y <= m and -m <= z <= m:
+            if self.imu_sel.chosen is None:  # _imu's note
+                for it in self.imu_sel.note("HIGHRES_IMU", self.clock.last_t_us):
+                    self._imu_selected(it)
+            self._imu_usec((x, y, z), "HIGHRES_IMU", f["time_usec"], recv_s, compid)
             return
-        fb = (f["xacc"], f["yacc"], f["zacc"])  # m/s^2, body FRD
-        self._imu(fb, "HIGHRES_IMU", f["time_usec"], True, recv_s, compid)
+        self._imu("HIGHRES_IMU", decode_highres_imu(f), recv_s, compid)
+
+    def _highres_imu_reference(self, f, recv_s, compid) -> None:
+        self._imu("HIGHRES_IMU", decode_highres_imu(f), recv_s, compid)
 
     def _raw_imu(self, f, recv_s, compid) -> None:
-        if self.autopilot != MAV_AUTOPILOT_ARDUPILOTMEGA:
-            self.stats.filtered["raw_imu_not_ardupilot"] += 1  # raw sensor counts elsewhere
-            return
-        fb = (f["xacc"] * MILLI_G_MPS2, f["yacc"] * MILLI_G_MPS2, f["zacc"] * MILLI_G_MPS2)  # milli-g
-        self._imu(fb, "RAW_IMU", f["time_usec"], True, recv_s, compid)
+        self._imu("RAW_IMU", decode_raw_imu(f, self.autopilot), recv_s, compid)
 
     def _scaled_imu_handler(self, name: str):
         def handler(f, recv_s, compid) -> None:
-            fb = (f["xacc"] * MILLI_G_MPS2, f["yacc"] * MILLI_G_MPS2, f["zacc"] * MILLI_G_MPS2)  # milli-g
-            self._imu(fb, name, f["time_boot_ms"] * 1000, False, recv_s, compid)
+            self._imu(name, decode_scaled_imu(name, f), recv_s, compid)
 
         return handler
 
-    def _imu(self, fb, name, t_raw, usec: bool, recv_s, compid) -> None:
+    def _imu(self, name: str, r, recv_s, compid) -> None:
+        """One IMU message's decoding (:mod:`.decoders`): skipped, or noted for the
+        source choice, then refused or placed on the vehicle clock."""
+        kind = type(r)
+        if kind is Skipped:
+            self.stats.filtered[r.counter] += 1
+            return
         if self.imu_sel.chosen is None:  # _noted, inline: once chosen, nothing to note
             for it in self.imu_sel.note(name, self.clock.last_t_us):
                 self._imu_selected(it)
-        if not _finite(*fb):
-            self._reject(recv_s, "nan", f"{name} with a non-finite acceleration")
+        if kind is Refusal:
+            self._reject(recv_s, r.kind, r.detail)
             return
-        if max(abs(fb[0]), abs(fb[1]), abs(fb[2])) > MAX_SPECIFIC_FORCE_MPS2:
-            self._reject(recv_s, "impossible", f"{name} acceleration beyond 50 g")
-            return
-        if usec:
-            self._imu_usec(fb, name, t_raw, recv_s, compid)
+        if r.usec:
+            self._imu_usec(r.fb, name, r.t_raw, recv_s, compid)
         else:
-            self._boot_ms(t_raw, recv_s, compid, "imu", (fb, name))
+            self._boot_ms(r.t_raw, recv_s, compid, "imu", (r.fb, name))
 
     def _imu_usec(self, fb, name, t_raw, recv_s, compid) -> None:
         """:meth:`_imu_usec_reference` with the hot path inline (no candidate time
@@ -599,14 +607,11 @@ class Normaliser:
     # ------------------------------------------------------------------ barometer
 
     def _scaled_pressure(self, f, recv_s, compid) -> None:
-        p_pa = f["press_abs"] * 100.0  # hPa -> Pa
-        if not _finite(p_pa):
-            self._reject(recv_s, "nan", "SCALED_PRESSURE with a non-finite pressure")
+        r = decode_pressure(f)
+        if type(r) is Refusal:
+            self._reject(recv_s, r.kind, r.detail)
             return
-        if not 0.0 < p_pa < MAX_PRESSURE_PA:
-            self._reject(recv_s, "impossible", f"static pressure {p_pa:.6g} Pa")
-            return
-        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "pressure", p_pa)
+        self._boot_ms(r.t_boot_us, recv_s, compid, "pressure", r.p_pa)
 
     def _pressure_at(self, p_pa, t_us, recv_s) -> None:
         self.range_checks.stuck.pressure(p_pa)
@@ -615,30 +620,19 @@ class Normaliser:
     # ------------------------------------------------------------------ GNSS
 
     def _gps_raw_int(self, f, recv_s, compid) -> None:
-        fix = f["fix_type"]
-        if f["alt_ellipsoid"] != 0 and fix >= self.cfg.min_fix_type:
-            self.refs.geoid_sep_m = (f["alt_ellipsoid"] - f["alt"]) / 1000.0
-        if fix < self.cfg.min_fix_type:
-            self.stats.filtered["gnss_no_fix"] += 1
+        r = decode_gps_raw_int(f, self.cfg.min_fix_type, self.cfg.gnss_altitude)
+        if type(r) is Skipped:
+            self.stats.filtered[r.counter] += 1
             return
-        if self.cfg.gnss_altitude == "msl":
-            alt_m = f["alt"] / 1000.0  # mm MSL
-        else:
-            if f["alt_ellipsoid"] == 0:
-                self.stats.filtered["gnss_no_ellipsoid_alt"] += 1
-                return
-            alt_m = f["alt_ellipsoid"] / 1000.0  # mm above WGS84
-        v_acc = f["v_acc"]
-        sigma_m = v_acc / 1000.0 if 0 < v_acc < UINT32_MAX else None  # mm, 0 = unknown
-        payload = (alt_m, sigma_m, fix, f["satellites_visible"])
-        if f["time_usec"] == 0:  # not filled: placed on the vehicle clock by receive time
-            self._on_time(self.time.untimed(recv_s, "gnss", payload, "GPS_RAW_INT without time"))
+        if r.geoid_sep_m is not None:
+            self.refs.geoid_sep_m = r.geoid_sep_m
+        if r.time_usec == 0:  # not filled: placed on the vehicle clock by receive time
+            self._on_time(self.time.untimed(recv_s, "gnss", r, "GPS_RAW_INT without time"))
             return
-        self._on_time(self.time.usec(("GPS_RAW_INT", compid), f["time_usec"], recv_s, "GPS_RAW_INT", "gnss", payload))
+        self._on_time(self.time.usec(("GPS_RAW_INT", compid), r.time_usec, recv_s, "GPS_RAW_INT", "gnss", r))
 
-    def _gnss_at(self, payload, t_us, recv_s) -> None:
-        alt_m, sigma_m, fix, sats = payload
-        self._on_refs(self.refs.gnss_altitude(GnssItem(t_us, recv_s, self.clock.boot, alt_m, sigma_m, fix, sats)))
+    def _gnss_at(self, r: GnssReading, t_us, recv_s) -> None:
+        self._on_refs(self.refs.gnss_altitude(GnssItem(t_us, recv_s, self.clock.boot, r.alt_m, r.sigma_m, r.fix, r.sats)))
 
     def gnss_ref_msl_m(self) -> Optional[float]:
         """The GNSS reference as an altitude MSL (None: not known yet)."""

@@ -26,6 +26,7 @@ from typing import NamedTuple, Optional, Union
 
 from ..atmosphere import height_from_pressure_m
 from ..config import IngestConfig
+from .decoders import Refusal
 
 DISTANCE_SENSOR_QUALITY_INVALID = 1
 _OTHER = {"DISTANCE_SENSOR": "RANGEFINDER", "RANGEFINDER": "DISTANCE_SENSOR"}
@@ -39,17 +40,6 @@ class RangeReading(NamedTuple):
     range_m: float  # slant range along the sensor axis
     lo_m: float  # the valid range of the reading
     hi_m: float
-
-
-class Refusal(NamedTuple):
-    """Why a reading is refused: a ``Rejected`` kind, in words, and the reading
-    and its valid range where known (NaN otherwise)."""
-
-    kind: str
-    detail: str
-    value_m: float = math.nan
-    min_m: float = math.nan
-    max_m: float = math.nan
 
 
 def decode_reading(name: str, f: dict, min_m: float, max_m: float) -> Union[RangeReading, Refusal]:

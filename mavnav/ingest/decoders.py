@@ -1,0 +1,159 @@
+"""Per-message decoders: one MAVLink message's fields -> a reading in SI units, or why not.
+
+Each decoder is a pure function of the message's fields (the dict of
+:func:`.wire.make_decoder`) and of the settings passed in: no clock, no
+reference, no state. It returns one of
+
+* a reading (:class:`BaroReading`, :class:`GnssReading`, :class:`ImuReading`),
+  with the message's own time field still raw (the normaliser places it on
+  the vehicle clock);
+* a :class:`Refusal`: the message carries a reading but it is unusable; the
+  normaliser turns it into a :class:`~mavnav.samples.Rejected` of that
+  ``kind`` and ``detail``;
+* a :class:`Skipped`: the message carries no reading of this kind (no fix, no
+  new accelerometer sample, raw sensor counts); not an error, counted in
+  ``stats.filtered[counter]``.
+
+What the rules are, and why, is in the :mod:`.normaliser` module docstring;
+the rangefinder's decoder is :func:`.rangecheck.decode_reading`. The
+normaliser keeps the clock, the references, the source choice and the
+stream discipline.
+
+The IMU's hot path (HIGHRES_IMU, every frame of a PX4 log) does the same
+arithmetic inline in :meth:`.normaliser.Normaliser._highres_imu`;
+``tests/test_ingest_decoders.py`` checks the two agree.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple, Optional, Union
+
+from ..constants import G0_MPS2
+from .systems import MAV_AUTOPILOT_ARDUPILOTMEGA
+
+MILLI_G_MPS2 = G0_MPS2 / 1000.0
+MAX_SPECIFIC_FORCE_MPS2 = 50 * G0_MPS2  # beyond any airframe IMU range
+MAX_PRESSURE_PA = 2.0e7  # 200 bar: deeper than any ROV depth sensor reads
+UINT32_MAX = 0xFFFFFFFF
+HIGHRES_IMU_ACCEL_BITS = 0b111  # fields_updated: xacc, yacc, zacc
+
+
+class Refusal(NamedTuple):
+    """Why a reading is refused: a ``Rejected`` kind, in words, and the reading
+    and its valid range where known (NaN otherwise)."""
+
+    kind: str
+    detail: str
+    value_m: float = math.nan
+    min_m: float = math.nan
+    max_m: float = math.nan
+
+
+class Skipped(NamedTuple):
+    """The message carries no reading of its kind: counted as ``stats.filtered[counter]``."""
+
+    counter: str
+
+
+GNSS_NO_FIX = Skipped("gnss_no_fix")
+GNSS_NO_ELLIPSOID_ALT = Skipped("gnss_no_ellipsoid_alt")
+IMU_ACCEL_NOT_UPDATED = Skipped("imu_accel_not_updated")
+RAW_IMU_NOT_ARDUPILOT = Skipped("raw_imu_not_ardupilot")
+
+# ------------------------------------------------------------------ barometer
+
+
+class BaroReading(NamedTuple):
+    """SCALED_PRESSURE(2/3): the static pressure and the message's boot time."""
+
+    p_pa: float
+    t_boot_us: int  # time_boot_ms in us, on the sender's boot clock
+
+
+def decode_pressure(f: dict) -> Union[BaroReading, Refusal]:
+    """SCALED_PRESSURE, SCALED_PRESSURE2 or SCALED_PRESSURE3 (the same fields)."""
+    p_pa = f["press_abs"] * 100.0  # hPa -> Pa
+    if not math.isfinite(p_pa):
+        return Refusal("nan", "SCALED_PRESSURE with a non-finite pressure")
+    if not 0.0 < p_pa < MAX_PRESSURE_PA:
+        return Refusal("impossible", f"static pressure {p_pa:.6g} Pa")
+    return BaroReading(p_pa, f["time_boot_ms"] * 1000)
+
+
+# ------------------------------------------------------------------ GNSS
+
+
+class GnssReading(NamedTuple):
+    """GPS_RAW_INT with a fix: the altitude in the configured datum."""
+
+    alt_m: float  # MSL or above the WGS84 ellipsoid (ingest.gnss_altitude)
+    sigma_m: Optional[float]  # v_acc, None when unknown
+    fix: int
+    sats: int
+    time_usec: int  # 0: not filled (placed by receive time)
+    geoid_sep_m: Optional[float]  # alt_ellipsoid - alt, None without alt_ellipsoid
+
+
+def decode_gps_raw_int(f: dict, min_fix_type: int, altitude: str) -> Union[GnssReading, Skipped]:
+    """``min_fix_type``: ``ingest.min_fix_type``; ``altitude``: ``ingest.gnss_altitude``
+    (``"msl"`` or ``"ellipsoid"``)."""
+    fix = f["fix_type"]
+    if fix < min_fix_type:
+        return GNSS_NO_FIX
+    alt_ell = f["alt_ellipsoid"]
+    geoid_sep_m = (alt_ell - f["alt"]) / 1000.0 if alt_ell != 0 else None
+    if altitude == "msl":
+        alt_m = f["alt"] / 1000.0  # mm MSL
+    else:
+        if alt_ell == 0:
+            return GNSS_NO_ELLIPSOID_ALT
+        alt_m = alt_ell / 1000.0  # mm above WGS84
+    v_acc = f["v_acc"]
+    sigma_m = v_acc / 1000.0 if 0 < v_acc < UINT32_MAX else None  # mm, 0 = unknown
+    return GnssReading(alt_m, sigma_m, fix, f["satellites_visible"], f["time_usec"], geoid_sep_m)
+
+
+# ------------------------------------------------------------------ IMU
+
+
+class ImuReading(NamedTuple):
+    """An accelerometer sample: specific force in the body frame and the message's time."""
+
+    name: str  # the message it came in
+    fb: tuple  # specific force, body FRD, m/s^2
+    t_raw: int  # time_usec (usec True) or time_boot_ms in us (usec False)
+    usec: bool  # t_raw is a time_usec (placed through that stream's offset)
+
+
+def _checked(name: str, fb: tuple, t_raw: int, usec: bool) -> Union[ImuReading, Refusal]:
+    x, y, z = fb
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        return Refusal("nan", f"{name} with a non-finite acceleration")
+    if max(abs(x), abs(y), abs(z)) > MAX_SPECIFIC_FORCE_MPS2:
+        return Refusal("impossible", f"{name} acceleration beyond 50 g")
+    return ImuReading(name, fb, t_raw, usec)
+
+
+def decode_highres_imu(f: dict) -> Union[ImuReading, Refusal, Skipped]:
+    """HIGHRES_IMU, m/s^2; with ``fields_updated`` set but no accelerometer bit it
+    is not a new accelerometer sample (0: the sender does not say, taken as new)."""
+    upd = f["fields_updated"]
+    if upd and not (upd & HIGHRES_IMU_ACCEL_BITS):
+        return IMU_ACCEL_NOT_UPDATED
+    return _checked("HIGHRES_IMU", (f["xacc"], f["yacc"], f["zacc"]), f["time_usec"], True)
+
+
+def decode_raw_imu(f: dict, autopilot: Optional[int]) -> Union[ImuReading, Refusal, Skipped]:
+    """RAW_IMU: milli-g on ArduPilot (``autopilot``: the vehicle heartbeat's), raw
+    sensor counts elsewhere (skipped)."""
+    if autopilot != MAV_AUTOPILOT_ARDUPILOTMEGA:
+        return RAW_IMU_NOT_ARDUPILOT
+    fb = (f["xacc"] * MILLI_G_MPS2, f["yacc"] * MILLI_G_MPS2, f["zacc"] * MILLI_G_MPS2)  # milli-g
+    return _checked("RAW_IMU", fb, f["time_usec"], True)
+
+
+def decode_scaled_imu(name: str, f: dict) -> Union[ImuReading, Refusal]:
+    """SCALED_IMU, SCALED_IMU2 or SCALED_IMU3 (``name``): milli-g, boot time in ms."""
+    fb = (f["xacc"] * MILLI_G_MPS2, f["yacc"] * MILLI_G_MPS2, f["zacc"] * MILLI_G_MPS2)  # milli-g
+    return _checked(name, fb, f["time_boot_ms"] * 1000, False)
