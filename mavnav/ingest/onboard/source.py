@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from itertools import repeat
 from pathlib import Path
 from typing import Iterator, List, Optional, Union
 
@@ -303,35 +304,16 @@ class _Builder:
             yield Notice(t0_us * 1e-6, "not_applicable", notice_text(st.not_applicable))
         yield from self.refs
         st.events["ReferenceSet"] += len(self.refs)
-        make = self._sample_makers()
-        samples = st.samples
-        if run_len is not None:
-            yield from self._with_runs(tags, idx, verdicts, gaps, run_len, by_tag, make)
-            return
-        for tag, i, verdict, gap_s in zip(tags, idx, verdicts, gaps):
-            c = by_tag[tag]
-            t = c[0][i]
-            recv = t * 1e-6
-            if tag not in make:  # _RANGE_REJ, _IMU_REJ
-                st.events["Rejected"] += 1
-                yield self._rejected(tag, c, i, t, recv)
-                continue
-            kind, s = make[tag](t, recv, c, i)
-            if verdict:  # cannot happen after the decoder's sort; kept as the tlog rule
-                st.rejected[_VERDICT[verdict]] += 1
-                continue
-            if gap_s > 0.0:
-                st.gaps.append(GapRecord(kind, t, 0, gap_s))
-                st.events["Gap"] += 1
-                yield Gap(t_us=t, recv_s=recv, boot=0, kind=kind, length_s=gap_s)
-            samples[kind] += 1
-            yield s
+        # without runs every item is a sample of its own (a run length of 0)
+        yield from self._with_runs(tags, idx, verdicts, gaps, run_len if run_len is not None else repeat(0),
+                                   by_tag, self._sample_makers())
 
     def _with_runs(self, tags, idx, verdicts, gaps, run_len, by_tag, make) -> Iterator[object]:
         """:meth:`samples`' loop, with each run of IMU samples as one
         :class:`~.imurun.ImuRun`; every other item as that loop makes it.
         The lists hold the merged items outside runs and the first item of
-        each run, whose ``run_len`` is the run's length (0: not a run)."""
+        each run, whose ``run_len`` is the run's length (0: not a run; all 0
+        when the samples are read one at a time)."""
         st = self.stats
         samples = st.samples
         imu = by_tag.get(_IMU)
@@ -354,7 +336,7 @@ class _Builder:
                 yield self._rejected(tag, c, i, t, recv)
                 continue
             kind, s = make[tag](t, recv, c, i)
-            if verdict:
+            if verdict:  # cannot happen after the decoder's sort; kept as the tlog rule
                 st.rejected[_VERDICT[verdict]] += 1
                 continue
             if gap_s > 0.0:
