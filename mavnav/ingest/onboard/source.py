@@ -47,7 +47,6 @@ import numpy as np
 
 from ...atmosphere import heights_from_pressures_m
 from ...config import IngestConfig
-from ...constants import G0_MPS2
 from ...errors import InputError
 from ...jit import njit
 from ...samples import (
@@ -62,6 +61,7 @@ from ...samples import (
     SpecificForceUp,
 )
 from ...sensors import AUTOPILOT_STREAM, BARO_STREAM, GNSS_STREAM, IMU_STREAM, RANGE_STREAM
+from ..decoders import MAX_SPECIFIC_FORCE_MPS2  # the tlog decoders' limit, one for both
 from ..stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
 from ..vehicle_class import not_applicable_reason, notice_text
 from .head import read_head
@@ -69,7 +69,6 @@ from .imurun import ImuRun
 from .record import OnboardRecord
 
 PathLike = Union[str, Path]
-MAX_SPECIFIC_FORCE_MPS2 = 50 * G0_MPS2
 ULOG_MAGIC = b"ULog\x01\x12\x35"
 
 # merge order at equal times
