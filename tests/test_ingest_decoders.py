@@ -6,6 +6,7 @@ normaliser against its decoder."""
 from __future__ import annotations
 
 import math
+import struct
 from pathlib import Path
 
 import pytest
@@ -14,16 +15,20 @@ from pymavlink.dialects.v20 import ardupilotmega as dialect
 from mavnav.config import IngestConfig
 from mavnav.constants import G0_MPS2
 from mavnav.ingest import TlogSource, wire
+from mavnav.frames import down_row_from_euler, down_row_from_quat
 from mavnav.ingest.decoders import (
     GNSS_NO_ELLIPSOID_ALT,
     GNSS_NO_FIX,
     IMU_ACCEL_NOT_UPDATED,
     RAW_IMU_NOT_ARDUPILOT,
+    AttitudeReading,
     BaroReading,
     GnssReading,
     ImuReading,
     Refusal,
     Skipped,
+    decode_attitude,
+    decode_attitude_quaternion,
     decode_gps_raw_int,
     decode_highres_imu,
     decode_pressure,
@@ -46,6 +51,8 @@ def fields(msg) -> dict:
     f = wire.make_decoder(back.get_msgId())(frame[10:10 + frame[1]])
     for name in back.get_fieldnames():  # the two decodes agree
         a, b = getattr(back, name), f[name]
+        if isinstance(a, list):  # an array field: a list from pymavlink, a tuple from the wire decoder
+            a = tuple(a)
         assert a == b or (isinstance(a, float) and math.isnan(a) and math.isnan(b)), name
     return f
 
@@ -174,6 +181,85 @@ def test_scaled_imu_is_milli_g_with_its_boot_time(which):
     assert type(r) is ImuReading and (r.name, r.t_raw, r.usec) == (which, 4_321_000, False)
     assert r.fb == pytest.approx((0.0, 0.25 * G0_MPS2, -G0_MPS2))
     assert r.fb[2] == -1000 * MG
+
+
+# ------------------------------------------------------------------ attitude
+
+
+def _attitude(roll, pitch, yaw, t_ms=4_321):
+    return fields(MAV.attitude_encode(t_ms, roll, pitch, yaw, 0.01, 0.02, 0.03))
+
+
+def _f32(x: float) -> float:
+    """``x`` as it comes back from a float field of the wire."""
+    return struct.unpack("<f", struct.pack("<f", x))[0]
+
+
+def test_attitude_reading_is_a_unit_quaternion_with_its_boot_time():
+    r = decode_attitude(_attitude(0.1, -0.05, 0.3))
+    assert type(r) is AttitudeReading
+    assert r.t_boot_us == 4_321_000 and type(r.t_boot_us) is int
+    assert math.fsum(c * c for c in r.q) == pytest.approx(1.0, abs=1e-15)
+    # the body's down axis the quaternion gives is the one roll and pitch give (yaw does not enter)
+    assert down_row_from_quat(r.q) == pytest.approx(down_row_from_euler(_f32(0.1), _f32(-0.05)), abs=1e-12)
+    # ZYX Euler angles: the half-angle products, w first
+    cr, sr = math.cos(_f32(0.1) / 2), math.sin(_f32(0.1) / 2)
+    cp, sp = math.cos(_f32(-0.05) / 2), math.sin(_f32(-0.05) / 2)
+    cy, sy = math.cos(_f32(0.3) / 2), math.sin(_f32(0.3) / 2)
+    assert r.q == pytest.approx((cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
+                                 cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy), abs=1e-15)
+
+
+@pytest.mark.parametrize("angles,q", [((0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0)),
+                                      ((math.pi, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0)),  # upside down
+                                      ((0.0, math.pi / 2, 0.0), (math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0)),
+                                      ((0.0, 0.0, -math.pi / 2), (math.sqrt(0.5), 0.0, 0.0, -math.sqrt(0.5)))])
+def test_attitude_known_angles(angles, q):
+    assert decode_attitude(_attitude(*angles)).q == pytest.approx(q, abs=1e-7)  # float32 angles
+
+
+@pytest.mark.parametrize("angles", [(math.nan, 0.0, 0.0), (0.0, math.inf, 0.0), (0.0, 0.0, -math.inf),
+                                    (math.nan, math.nan, math.nan)])
+def test_attitude_not_finite(angles):
+    assert decode_attitude(_attitude(*angles)) == Refusal("nan", "ATTITUDE with a non-finite angle")
+
+
+def _quaternion(q, t_ms=4_321):
+    return fields(MAV.attitude_quaternion_encode(t_ms, *q, 0.01, 0.02, 0.03, (0.0, 0.0, 0.0, 0.0)))
+
+
+def test_attitude_quaternion_reading_is_normalised_with_its_boot_time():
+    r = decode_attitude_quaternion(_quaternion((0.9, 0.1, -0.2, 0.3)))
+    assert type(r) is AttitudeReading
+    assert r.t_boot_us == 4_321_000 and type(r.t_boot_us) is int
+    n = math.sqrt(0.9 ** 2 + 0.1 ** 2 + 0.2 ** 2 + 0.3 ** 2)
+    assert r.q == pytest.approx((0.9 / n, 0.1 / n, -0.2 / n, 0.3 / n), abs=1e-7)
+    assert math.fsum(c * c for c in r.q) == pytest.approx(1.0, abs=1e-15)
+
+
+@pytest.mark.parametrize("q,unit", [((1.5, 0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0)),
+                                    ((0.0, 0.0, 0.0, -0.6), (0.0, 0.0, 0.0, -1.0)),
+                                    ((0.9, 0.9, 0.9, 0.9), (0.5, 0.5, 0.5, 0.5)),  # norm 1.8
+                                    ((0.36, 0.0, 0.0, -0.36), (math.sqrt(0.5), 0.0, 0.0, -math.sqrt(0.5)))])  # norm 0.509
+def test_attitude_quaternion_scaled_within_half_and_twice(q, unit):
+    assert decode_attitude_quaternion(_quaternion(q)).q == pytest.approx(unit, abs=1e-7)
+
+
+@pytest.mark.parametrize("q", [(math.nan, 0.0, 0.0, 1.0), (1.0, math.inf, 0.0, 0.0), (1.0, 0.0, -math.inf, 0.0),
+                               (1.0, 0.0, 0.0, math.nan)])
+def test_attitude_quaternion_not_finite(q):
+    assert decode_attitude_quaternion(_quaternion(q)) == Refusal("nan", "ATTITUDE_QUATERNION with a non-finite component")
+
+
+@pytest.mark.parametrize("q,text", [((0.0, 0.0, 0.0, 0.0), "ATTITUDE_QUATERNION norm 0"),
+                                    ((0.5, 0.0, 0.0, 0.0), "ATTITUDE_QUATERNION norm 0.5"),
+                                    ((0.0, 0.3, 0.0, 0.0), "ATTITUDE_QUATERNION norm 0.3"),
+                                    ((2.0, 0.0, 0.0, 0.0), "ATTITUDE_QUATERNION norm 2"),
+                                    ((1.0, 1.0, 1.0, 1.0), "ATTITUDE_QUATERNION norm 2"),
+                                    ((1.0, 1.0, 1.0, 1.5), "ATTITUDE_QUATERNION norm 2.29"),
+                                    ((1e30, 0.0, 0.0, 0.0), "ATTITUDE_QUATERNION norm 1e+30")])
+def test_attitude_quaternion_impossible_norm(q, text):
+    assert decode_attitude_quaternion(_quaternion(q)) == Refusal("impossible", text)
 
 
 # ------------------------------------------------------------------ the normaliser's HIGHRES_IMU hot path

@@ -30,6 +30,7 @@ import math
 from typing import NamedTuple, Optional, Union
 
 from ..constants import G0_MPS2
+from ..frames import quat_from_euler
 from .systems import MAV_AUTOPILOT_ARDUPILOTMEGA
 
 MILLI_G_MPS2 = G0_MPS2 / 1000.0
@@ -157,3 +158,34 @@ def decode_scaled_imu(name: str, f: dict) -> Union[ImuReading, Refusal]:
     """SCALED_IMU, SCALED_IMU2 or SCALED_IMU3 (``name``): milli-g, boot time in ms."""
     fb = (f["xacc"] * MILLI_G_MPS2, f["yacc"] * MILLI_G_MPS2, f["zacc"] * MILLI_G_MPS2)  # milli-g
     return _checked(name, fb, f["time_boot_ms"] * 1000, False)
+
+
+# ------------------------------------------------------------------ attitude
+
+
+class AttitudeReading(NamedTuple):
+    """ATTITUDE or ATTITUDE_QUATERNION: the attitude and the message's boot time."""
+
+    q: tuple  # unit quaternion (w, x, y, z), body FRD -> NED
+    t_boot_us: int  # time_boot_ms in us, on the sender's boot clock
+
+
+def decode_attitude(f: dict) -> Union[AttitudeReading, Refusal]:
+    """ATTITUDE: Euler angles in rad (roll, pitch, yaw) -> a quaternion."""
+    roll, pitch, yaw = f["roll"], f["pitch"], f["yaw"]
+    if not (math.isfinite(roll) and math.isfinite(pitch) and math.isfinite(yaw)):
+        return Refusal("nan", "ATTITUDE with a non-finite angle")
+    return AttitudeReading(quat_from_euler(roll, pitch, yaw), f["time_boot_ms"] * 1000)
+
+
+def decode_attitude_quaternion(f: dict) -> Union[AttitudeReading, Refusal]:
+    """ATTITUDE_QUATERNION: (q1..q4) = (w, x, y, z), normalised; a norm outside
+    (0.5, 2) is no attitude."""
+    q = (f["q1"], f["q2"], f["q3"], f["q4"])
+    for c in q:
+        if not math.isfinite(c):
+            return Refusal("nan", "ATTITUDE_QUATERNION with a non-finite component")
+    n = math.sqrt(sum(c * c for c in q))
+    if not 0.5 < n < 2.0:
+        return Refusal("impossible", f"ATTITUDE_QUATERNION norm {n:.3g}")
+    return AttitudeReading(tuple(c / n for c in q), f["time_boot_ms"] * 1000)

@@ -99,7 +99,7 @@ from collections import deque
 from typing import Deque, List, NamedTuple, Optional, Sequence
 
 from ..config import IngestConfig
-from ..frames import cos_tilt, down_row_from_quat, f_up_from_body, quat_from_euler
+from ..frames import cos_tilt, down_row_from_quat, f_up_from_body
 from ..samples import (
     AutopilotHeight,
     BaroHeight,
@@ -121,7 +121,8 @@ from .attitude import AttitudeInterpolator
 from .heightref import GNSS_FIXED, BaroItem, GnssItem, HeightReferences
 from .clock import HOLD
 from .decoders import (HIGHRES_IMU_ACCEL_BITS, MAX_SPECIFIC_FORCE_MPS2, GnssReading, Refusal, Skipped,
-                       decode_gps_raw_int, decode_highres_imu, decode_pressure, decode_raw_imu, decode_scaled_imu)
+                       decode_attitude, decode_attitude_quaternion, decode_gps_raw_int, decode_highres_imu,
+                       decode_pressure, decode_raw_imu, decode_scaled_imu)
 from .rangecheck import RangeChecks
 from .timebase import BEHIND_US, SETTLED, ClockStepped, NewBoot, Placed, TimeBase
 from .stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
@@ -467,23 +468,18 @@ class Normaliser:
     # ------------------------------------------------------------------ attitude and IMU
 
     def _attitude(self, f, recv_s, compid) -> None:
-        if not _finite(f["roll"], f["pitch"], f["yaw"]):
-            self._reject(recv_s, "nan", "ATTITUDE with a non-finite angle")
+        r = decode_attitude(f)
+        if type(r) is Refusal:
+            self._reject(recv_s, r.kind, r.detail)
             return
-        q = quat_from_euler(f["roll"], f["pitch"], f["yaw"])
-        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "attitude", q)
+        self._boot_ms(r.t_boot_us, recv_s, compid, "attitude", r.q)
 
     def _attitude_quaternion(self, f, recv_s, compid) -> None:
-        q = (f["q1"], f["q2"], f["q3"], f["q4"])
-        if not _finite(*q):
-            self._reject(recv_s, "nan", "ATTITUDE_QUATERNION with a non-finite component")
+        r = decode_attitude_quaternion(f)
+        if type(r) is Refusal:
+            self._reject(recv_s, r.kind, r.detail)
             return
-        n = math.sqrt(sum(c * c for c in q))
-        if not 0.5 < n < 2.0:
-            self._reject(recv_s, "impossible", f"ATTITUDE_QUATERNION norm {n:.3g}")
-            return
-        q = tuple(c / n for c in q)
-        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "attitude", q)
+        self._boot_ms(r.t_boot_us, recv_s, compid, "attitude", r.q)
 
     def _attitude_at(self, q, t_us, recv_s) -> None:
         self.att.add(t_us, q)
