@@ -21,16 +21,21 @@ from mavnav.ingest.decoders import (
     GNSS_NO_FIX,
     IMU_ACCEL_NOT_UPDATED,
     RAW_IMU_NOT_ARDUPILOT,
+    HOME_UNSET_MM,
     AttitudeReading,
     BaroReading,
+    GlobalPositionReading,
     GnssReading,
     ImuReading,
+    LocalPositionReading,
     Refusal,
     Skipped,
     decode_attitude,
     decode_attitude_quaternion,
+    decode_global_position_int,
     decode_gps_raw_int,
     decode_highres_imu,
+    decode_local_position_ned,
     decode_pressure,
     decode_raw_imu,
     decode_scaled_imu,
@@ -260,6 +265,71 @@ def test_attitude_quaternion_not_finite(q):
                                     ((1e30, 0.0, 0.0, 0.0), "ATTITUDE_QUATERNION norm 1e+30")])
 def test_attitude_quaternion_impossible_norm(q, text):
     assert decode_attitude_quaternion(_quaternion(q)) == Refusal("impossible", text)
+
+
+# ------------------------------------------------------------------ the autopilot's own position
+
+
+def _gpi(lat=473977000, lon=85455000, alt_mm=510_250, rel_mm=22_125, vz_cms=-150, t_ms=65_000):
+    return fields(MAV.global_position_int_encode(t_ms, lat, lon, alt_mm, rel_mm, 120, -30, vz_cms, 9000))
+
+
+def test_global_position_int_reading_in_m_with_home():
+    r = decode_global_position_int(_gpi())
+    assert r == GlobalPositionReading(510.25, 22.125, 1.5, 488.125, 65_000_000)  # climbing at 1.5 m/s
+    assert type(r.t_boot_us) is int
+
+
+@pytest.mark.parametrize("vz,up", [(0, 0.0), (250, -2.5), (-32768, 327.68), (32767, -327.67)])
+def test_global_position_int_vertical_speed_is_up(vz, up):
+    v = decode_global_position_int(_gpi(vz_cms=vz)).vel_up
+    assert v == up and math.copysign(1.0, v) == math.copysign(1.0, up)  # 0 is +0.0, as it always was
+
+
+def test_global_position_int_without_a_position():
+    # ArduPilot without a fix: lat = lon = 0 and alt its uncorrected baro altitude (or 0): no MSL, no home
+    r = decode_global_position_int(_gpi(lat=0, lon=0))
+    assert r == GlobalPositionReading(None, 22.125, 1.5, None, 65_000_000)
+
+
+@pytest.mark.parametrize("lat,lon", [(1, 0), (0, -1), (-335000000, 0)])
+def test_global_position_int_on_the_equator_or_the_meridian_has_a_position(lat, lon):
+    r = decode_global_position_int(_gpi(lat=lat, lon=lon))
+    assert r.alt_msl_m == 510.25 and r.home_msl_m == 488.125
+
+
+@pytest.mark.parametrize("alt,rel,home", [(510_250, 510_250, None),  # old ArduPilot before arming: home at 0
+                                          (510_250, 510_250 - HOME_UNSET_MM + 1, None),
+                                          (510_250, 510_250 + HOME_UNSET_MM - 1, None),
+                                          (510_250, 510_250 - HOME_UNSET_MM, 0.05),
+                                          (510_250, 510_250 + HOME_UNSET_MM, -0.05),
+                                          (-12_000, -2_000, -10.0)])  # below sea level
+def test_global_position_int_home_not_set(alt, rel, home):
+    r = decode_global_position_int(_gpi(alt_mm=alt, rel_mm=rel))
+    assert r.home_msl_m == home and r.alt_msl_m == alt / 1000.0 and r.rel_m == rel / 1000.0
+    assert HOME_UNSET_MM == 50
+
+
+def _lpn(z=-12.5, vz=0.75, t_ms=65_000):
+    return fields(MAV.local_position_ned_encode(t_ms, 3.0, -4.0, z, 0.5, -0.25, vz))
+
+
+def test_local_position_ned_reading_is_up():
+    r = decode_local_position_ned(_lpn())
+    assert r == LocalPositionReading(12.5, -0.75, 65_000_000)  # 12.5 m above the EKF origin, sinking
+    assert type(r.t_boot_us) is int
+
+
+@pytest.mark.parametrize("vz", [math.nan, math.inf, -math.inf])
+def test_local_position_ned_vz_not_finite_is_an_unknown_speed(vz):
+    r = decode_local_position_ned(_lpn(vz=vz))
+    assert type(r) is LocalPositionReading and r.up_m == 12.5 and math.isnan(r.vel_up)
+
+
+@pytest.mark.parametrize("z", [math.nan, math.inf, -math.inf])
+def test_local_position_ned_z_not_finite(z):
+    for vz in (0.75, math.nan):
+        assert decode_local_position_ned(_lpn(z=z, vz=vz)) == Refusal("nan", "LOCAL_POSITION_NED with a non-finite z")
 
 
 # ------------------------------------------------------------------ the normaliser's HIGHRES_IMU hot path

@@ -189,3 +189,47 @@ def decode_attitude_quaternion(f: dict) -> Union[AttitudeReading, Refusal]:
     if not 0.5 < n < 2.0:
         return Refusal("impossible", f"ATTITUDE_QUATERNION norm {n:.3g}")
     return AttitudeReading(tuple(c / n for c in q), f["time_boot_ms"] * 1000)
+
+
+# ------------------------------------------------------------------ the autopilot's own position and datums
+
+HOME_UNSET_MM = 50  # GLOBAL_POSITION_INT alt - relative_alt below this: ArduPilot's home not yet set
+
+
+class GlobalPositionReading(NamedTuple):
+    """GLOBAL_POSITION_INT: the autopilot's altitudes and vertical speed, and the message's boot time."""
+
+    alt_msl_m: Optional[float]  # alt, None without a position (lat = lon = 0)
+    rel_m: float  # relative_alt: above the autopilot's home
+    vel_up: float  # -vz, m/s
+    home_msl_m: Optional[float]  # alt - relative_alt, None without a position or with home not set
+    t_boot_us: int  # time_boot_ms in us, on the sender's boot clock
+
+
+def decode_global_position_int(f: dict) -> GlobalPositionReading:
+    """GLOBAL_POSITION_INT: mm and cm/s (integers: always finite). Without a
+    position ArduPilot sends lat = lon = 0 and in ``alt`` 0 or its uncorrected
+    baro altitude; before home is set old ArduPilot reports ``relative_alt ==
+    alt`` (home at 0): the home altitude is then unknown."""
+    alt, rel = f["alt"], f["relative_alt"]
+    has_position = f["lat"] != 0 or f["lon"] != 0
+    home_msl_m = (alt - rel) / 1000.0 if has_position and abs(alt - rel) >= HOME_UNSET_MM else None
+    return GlobalPositionReading(alt / 1000.0 if has_position else None, rel / 1000.0, -f["vz"] / 100.0,
+                                 home_msl_m, f["time_boot_ms"] * 1000)
+
+
+class LocalPositionReading(NamedTuple):
+    """LOCAL_POSITION_NED: the height above the EKF origin and the message's boot time."""
+
+    up_m: float  # -z
+    vel_up: float  # -vz, m/s; NaN when not finite
+    t_boot_us: int  # time_boot_ms in us, on the sender's boot clock
+
+
+def decode_local_position_ned(f: dict) -> Union[LocalPositionReading, Refusal]:
+    """LOCAL_POSITION_NED: z and vz down, m and m/s; a non-finite z is refused,
+    a non-finite vz is an unknown vertical speed (NaN)."""
+    z, vz = f["z"], f["vz"]
+    if not math.isfinite(z):
+        return Refusal("nan", "LOCAL_POSITION_NED with a non-finite z")
+    return LocalPositionReading(-z, -vz if math.isfinite(vz) else math.nan, f["time_boot_ms"] * 1000)
