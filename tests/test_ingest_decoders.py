@@ -24,6 +24,7 @@ from mavnav.ingest.decoders import (
     HOME_UNSET_MM,
     AttitudeReading,
     BaroReading,
+    DatumReading,
     GlobalPositionReading,
     GnssReading,
     ImuReading,
@@ -33,8 +34,10 @@ from mavnav.ingest.decoders import (
     decode_attitude,
     decode_attitude_quaternion,
     decode_global_position_int,
+    decode_gps_global_origin,
     decode_gps_raw_int,
     decode_highres_imu,
+    decode_home_position,
     decode_local_position_ned,
     decode_pressure,
     decode_raw_imu,
@@ -330,6 +333,27 @@ def test_local_position_ned_vz_not_finite_is_an_unknown_speed(vz):
 def test_local_position_ned_z_not_finite(z):
     for vz in (0.75, math.nan):
         assert decode_local_position_ned(_lpn(z=z, vz=vz)) == Refusal("nan", "LOCAL_POSITION_NED with a non-finite z")
+
+
+# ------------------------------------------------------------------ home and EKF origin
+
+
+def _home(alt_mm, time_usec=0):
+    return fields(MAV.home_position_encode(473977000, 85455000, alt_mm, 1.0, 2.0, -0.5, (1.0, 0.0, 0.0, 0.0),
+                                           0.0, 0.0, 0.0, time_usec))
+
+
+def _origin(alt_mm, time_usec=0):
+    return fields(MAV.gps_global_origin_encode(473977000, 85455000, alt_mm, time_usec))
+
+
+@pytest.mark.parametrize("message,decode", [(_home, decode_home_position), (_origin, decode_gps_global_origin)])
+def test_home_and_origin_altitude_in_m_msl(message, decode):
+    assert decode(message(488_125, 123_456_789)) == DatumReading(488.125, 123_456_789)
+    assert decode(message(-12_000)) == DatumReading(-12.0, 0)  # below sea level; time_usec not sent
+    # an int32 of mm: every value is a finite altitude, so there is nothing to refuse
+    assert decode(message(2**31 - 1)).alt_msl_m == 2147483.647
+    assert decode(message(-2**31)).alt_msl_m == -2147483.648
 
 
 # ------------------------------------------------------------------ the normaliser's HIGHRES_IMU hot path

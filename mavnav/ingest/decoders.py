@@ -233,3 +233,20 @@ def decode_local_position_ned(f: dict) -> Union[LocalPositionReading, Refusal]:
     if not math.isfinite(z):
         return Refusal("nan", "LOCAL_POSITION_NED with a non-finite z")
     return LocalPositionReading(-z, -vz if math.isfinite(vz) else math.nan, f["time_boot_ms"] * 1000)
+
+
+class DatumReading(NamedTuple):
+    """HOME_POSITION (the autopilot's home) or GPS_GLOBAL_ORIGIN (its EKF origin): the point's altitude."""
+
+    alt_msl_m: float
+    time_usec: int  # the message's time_usec (an extension: 0 when not sent); not used by the normaliser
+
+
+def decode_home_position(f: dict) -> DatumReading:
+    """HOME_POSITION: altitude in mm MSL (an integer: always finite)."""
+    return DatumReading(f["altitude"] / 1000.0, f["time_usec"])
+
+
+def decode_gps_global_origin(f: dict) -> DatumReading:
+    """GPS_GLOBAL_ORIGIN: altitude in mm MSL (an integer: always finite)."""
+    return DatumReading(f["altitude"] / 1000.0, f["time_usec"])

@@ -122,8 +122,9 @@ from .heightref import GNSS_FIXED, BaroItem, GnssItem, HeightReferences
 from .clock import HOLD
 from .decoders import (HIGHRES_IMU_ACCEL_BITS, MAX_SPECIFIC_FORCE_MPS2, GlobalPositionReading, GnssReading,
                        LocalPositionReading, Refusal, Skipped, decode_attitude, decode_attitude_quaternion,
-                       decode_global_position_int, decode_gps_raw_int, decode_highres_imu, decode_local_position_ned,
-                       decode_pressure, decode_raw_imu, decode_scaled_imu)
+                       decode_global_position_int, decode_gps_global_origin, decode_gps_raw_int, decode_highres_imu,
+                       decode_home_position, decode_local_position_ned, decode_pressure, decode_raw_imu,
+                       decode_scaled_imu)
 from .rangecheck import RangeChecks
 from .timebase import BEHIND_US, SETTLED, ClockStepped, NewBoot, Placed, TimeBase
 from .stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
@@ -185,13 +186,6 @@ class AutopilotItem(NamedTuple):
 
 
 _NOTHING: tuple = ()  # what a call that releases nothing returns
-
-
-def _finite(*vals) -> bool:
-    for v in vals:
-        if not math.isfinite(v):
-            return False
-    return True
 
 
 class Normaliser:
@@ -635,10 +629,7 @@ class Normaliser:
         return self.refs.gnss_ref_msl_m()
 
     def _home_position(self, f, recv_s, compid) -> None:
-        alt_m = f["altitude"] / 1000.0  # mm MSL
-        if not _finite(alt_m):
-            return
-        self._on_refs(self.refs.home_position(alt_m))
+        self._on_refs(self.refs.home_position(decode_home_position(f).alt_msl_m))
 
     # ------------------------------------------------------------------ rangefinder
 
@@ -720,10 +711,7 @@ class Normaliser:
             self._ap_selected(it)
 
     def _gps_global_origin(self, f, recv_s, compid) -> None:
-        alt_m = f["altitude"] / 1000.0  # mm MSL
-        if not _finite(alt_m):
-            return
-        self._on_refs(self.refs.ekf_origin(alt_m))
+        self._on_refs(self.refs.ekf_origin(decode_gps_global_origin(f).alt_msl_m))
 
     def _noted(self, sel: SourceSelector, name: str) -> list:
         """A message of source ``name`` arrived: the items held for the source
