@@ -4,9 +4,19 @@ Each decoder is a pure function of the message's fields (the dict of
 :func:`.wire.make_decoder`) and of the settings passed in: no clock, no
 reference, no state. It returns one of
 
-* a reading (:class:`BaroReading`, :class:`GnssReading`, :class:`ImuReading`),
-  with the message's own time field still raw (the normaliser places it on
-  the vehicle clock);
+* a reading, with the message's own time field still raw (the normaliser
+  places it on the vehicle clock):
+
+  - :class:`BaroReading`: SCALED_PRESSURE, SCALED_PRESSURE2, SCALED_PRESSURE3;
+  - :class:`GnssReading`: GPS_RAW_INT;
+  - :class:`ImuReading`: HIGHRES_IMU, RAW_IMU, SCALED_IMU, SCALED_IMU2, SCALED_IMU3;
+  - :class:`AttitudeReading` (a unit quaternion): ATTITUDE, ATTITUDE_QUATERNION;
+  - :class:`GlobalPositionReading`: GLOBAL_POSITION_INT (its MSL and home
+    altitudes ``None`` where the message cannot give them);
+  - :class:`LocalPositionReading`: LOCAL_POSITION_NED;
+  - :class:`DatumReading`: HOME_POSITION, GPS_GLOBAL_ORIGIN (never refused:
+    their altitude is an integer of mm);
+
 * a :class:`Refusal`: the message carries a reading but it is unusable; the
   normaliser turns it into a :class:`~mavnav.samples.Rejected` of that
   ``kind`` and ``detail``;
@@ -16,14 +26,17 @@ reference, no state. It returns one of
 
 What the rules are, and why, is in the :mod:`.normaliser` module docstring;
 the rangefinder's decoder is :func:`.rangecheck.decode_reading`. The
-normaliser keeps the clock, the references, the source choice and the
-stream discipline.
+normaliser keeps the clock, the references (with :mod:`.heightref`), the
+source choice and the stream discipline: which datum the autopilot's heights
+are taken in, and whether a home moved, are decided there, not here.
 
 The IMU's hot path (HIGHRES_IMU, every frame of a PX4 log) does the same
 arithmetic inline in :meth:`.normaliser.Normaliser._highres_imu`;
-``tests/test_ingest_decoders.py`` checks the two agree.
+``tests/test_ingest_decoders.py`` checks the two agree. ATTITUDE (50 Hz
+against HIGHRES_IMU's 200 Hz in ``bench/audit.py``'s log) calls its decoder:
+about 0.25 us more per message than the arithmetic inline, 0.4 % of that
+log's ingest.
 """
-
 from __future__ import annotations
 
 import math
