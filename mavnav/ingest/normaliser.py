@@ -99,7 +99,7 @@ from collections import deque
 from typing import Deque, List, NamedTuple, Optional, Sequence
 
 from ..config import IngestConfig
-from ..frames import cos_tilt, down_row_from_quat, f_up_from_body, quat_from_euler
+from ..frames import cos_tilt, down_row_from_quat, f_up_from_body
 from ..samples import (
     AutopilotHeight,
     BaroHeight,
@@ -120,8 +120,11 @@ from . import wire
 from .attitude import AttitudeInterpolator
 from .heightref import GNSS_FIXED, BaroItem, GnssItem, HeightReferences
 from .clock import HOLD
-from .decoders import (HIGHRES_IMU_ACCEL_BITS, MAX_SPECIFIC_FORCE_MPS2, GnssReading, Refusal, Skipped,
-                       decode_gps_raw_int, decode_highres_imu, decode_pressure, decode_raw_imu, decode_scaled_imu)
+from .decoders import (HIGHRES_IMU_ACCEL_BITS, MAX_SPECIFIC_FORCE_MPS2, GlobalPositionReading, GnssReading,
+                       LocalPositionReading, Refusal, Skipped, decode_attitude, decode_attitude_quaternion,
+                       decode_global_position_int, decode_gps_global_origin, decode_gps_raw_int, decode_highres_imu,
+                       decode_home_position, decode_local_position_ned, decode_pressure, decode_raw_imu,
+                       decode_scaled_imu)
 from .rangecheck import RangeChecks
 from .timebase import BEHIND_US, SETTLED, ClockStepped, NewBoot, Placed, TimeBase
 from .stats import GapRecord, IngestStats, ReferenceRecord, VehicleInfo
@@ -131,7 +134,6 @@ from .vehicle_class import is_height_input, not_applicable_reason, notice_text
 
 MAV_COMP_ID_AUTOPILOT1 = 1
 MAV_SENSOR_ROTATION_PITCH_270 = 25  # downward
-HOME_UNSET_MM = 50  # GLOBAL_POSITION_INT alt - relative_alt below this: ArduPilot's home not yet set
 PRE_IMU_HOLD_US = 5_000_000  # at most this long do measurements wait for the first IMU sample of a boot
 GATED = frozenset((BARO_STREAM, GNSS_STREAM, RANGE_STREAM))
 
@@ -184,13 +186,6 @@ class AutopilotItem(NamedTuple):
 
 
 _NOTHING: tuple = ()  # what a call that releases nothing returns
-
-
-def _finite(*vals) -> bool:
-    for v in vals:
-        if not math.isfinite(v):
-            return False
-    return True
 
 
 class Normaliser:
@@ -467,23 +462,18 @@ class Normaliser:
     # ------------------------------------------------------------------ attitude and IMU
 
     def _attitude(self, f, recv_s, compid) -> None:
-        if not _finite(f["roll"], f["pitch"], f["yaw"]):
-            self._reject(recv_s, "nan", "ATTITUDE with a non-finite angle")
+        r = decode_attitude(f)
+        if type(r) is Refusal:
+            self._reject(recv_s, r.kind, r.detail)
             return
-        q = quat_from_euler(f["roll"], f["pitch"], f["yaw"])
-        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "attitude", q)
+        self._boot_ms(r.t_boot_us, recv_s, compid, "attitude", r.q)
 
     def _attitude_quaternion(self, f, recv_s, compid) -> None:
-        q = (f["q1"], f["q2"], f["q3"], f["q4"])
-        if not _finite(*q):
-            self._reject(recv_s, "nan", "ATTITUDE_QUATERNION with a non-finite component")
+        r = decode_attitude_quaternion(f)
+        if type(r) is Refusal:
+            self._reject(recv_s, r.kind, r.detail)
             return
-        n = math.sqrt(sum(c * c for c in q))
-        if not 0.5 < n < 2.0:
-            self._reject(recv_s, "impossible", f"ATTITUDE_QUATERNION norm {n:.3g}")
-            return
-        q = tuple(c / n for c in q)
-        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "attitude", q)
+        self._boot_ms(r.t_boot_us, recv_s, compid, "attitude", r.q)
 
     def _attitude_at(self, q, t_us, recv_s) -> None:
         self.att.add(t_us, q)
@@ -639,10 +629,7 @@ class Normaliser:
         return self.refs.gnss_ref_msl_m()
 
     def _home_position(self, f, recv_s, compid) -> None:
-        alt_m = f["altitude"] / 1000.0  # mm MSL
-        if not _finite(alt_m):
-            return
-        self._on_refs(self.refs.home_position(alt_m))
+        self._on_refs(self.refs.home_position(decode_home_position(f).alt_msl_m))
 
     # ------------------------------------------------------------------ rangefinder
 
@@ -694,48 +681,37 @@ class Normaliser:
     # ------------------------------------------------------------------ autopilot's own height
 
     def _global_position_int(self, f, recv_s, compid) -> None:
+        r = decode_global_position_int(f)
         for it in self._noted(self.ap_sel, "GLOBAL_POSITION_INT"):
             self._ap_selected(it)
-        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "global_position_int", f)
+        self._boot_ms(r.t_boot_us, recv_s, compid, "global_position_int", r)
 
-    def _global_position_int_at(self, f, t_us, recv_s) -> None:
-        rel_m = f["relative_alt"] / 1000.0  # mm above home
-        vz = f["vz"]
-        vel_up = -vz / 100.0 if _finite(vz) else math.nan  # cm/s down
-        # home is known: a position (ArduPilot sends lat = lon = 0 without one) and home set
-        # (before arming old ArduPilot reports relative_alt == alt: home at 0)
-        if (f["lat"] != 0 or f["lon"] != 0) and abs(f["alt"] - f["relative_alt"]) >= HOME_UNSET_MM:
-            home_m = (f["alt"] - f["relative_alt"]) / 1000.0
-            rel_m, out = self.refs.autopilot_home(t_us, f["alt"] / 1000.0, home_m, rel_m, vel_up)
+    def _global_position_int_at(self, r: GlobalPositionReading, t_us, recv_s) -> None:
+        rel_m = r.rel_m  # above the autopilot's home
+        if r.home_msl_m is not None:  # a position and home set: the autopilot's home is known
+            rel_m, out = self.refs.autopilot_home(t_us, r.alt_msl_m, r.home_msl_m, rel_m, r.vel_up)
             self._on_refs(out)
-        # alt: mm MSL, none without a position (ArduPilot then sends 0 or its uncorrected baro altitude)
-        alt_msl = f["alt"] / 1000.0 if f["lat"] != 0 or f["lon"] != 0 else None
-        item = AutopilotItem(t_us, recv_s, self.clock.boot, alt_msl, rel_m, vel_up)
+        item = AutopilotItem(t_us, recv_s, self.clock.boot, r.alt_msl_m, rel_m, r.vel_up)
         for it in self.ap_sel.offer("GLOBAL_POSITION_INT", item):
             self._ap_selected(it)
 
     def _local_position_ned(self, f, recv_s, compid) -> None:
-        if not _finite(f["z"]):
-            self._reject(recv_s, "nan", "LOCAL_POSITION_NED with a non-finite z")
+        r = decode_local_position_ned(f)
+        if type(r) is Refusal:
+            self._reject(recv_s, r.kind, r.detail)
             return
         for it in self._noted(self.ap_sel, "LOCAL_POSITION_NED"):
             self._ap_selected(it)
-        self._boot_ms(f["time_boot_ms"] * 1000, recv_s, compid, "local_position_ned", f)
+        self._boot_ms(r.t_boot_us, recv_s, compid, "local_position_ned", r)
 
-    def _local_position_ned_at(self, f, t_us, recv_s) -> None:
-        up_m = -f["z"]  # z is down, m, above the EKF origin
-        vz = f["vz"]
-        vel_up = -vz if _finite(vz) else math.nan
-        self._on_refs(self.refs.local_position(t_us, up_m, vel_up))
-        item = AutopilotItem(t_us, recv_s, self.clock.boot, None, up_m, vel_up)
+    def _local_position_ned_at(self, r: LocalPositionReading, t_us, recv_s) -> None:
+        self._on_refs(self.refs.local_position(t_us, r.up_m, r.vel_up))
+        item = AutopilotItem(t_us, recv_s, self.clock.boot, None, r.up_m, r.vel_up)
         for it in self.ap_sel.offer("LOCAL_POSITION_NED", item):
             self._ap_selected(it)
 
     def _gps_global_origin(self, f, recv_s, compid) -> None:
-        alt_m = f["altitude"] / 1000.0  # mm MSL
-        if not _finite(alt_m):
-            return
-        self._on_refs(self.refs.ekf_origin(alt_m))
+        self._on_refs(self.refs.ekf_origin(decode_gps_global_origin(f).alt_msl_m))
 
     def _noted(self, sel: SourceSelector, name: str) -> list:
         """A message of source ``name`` arrived: the items held for the source
