@@ -35,8 +35,10 @@ demo: $(BASE)
 test: $(FULL)
 	$(BIN)/python -m pytest -q
 
-# The fast lane (under a minute): everything but the tests marked slow (Monte
-# Carlo, subprocesses and live links, the shared real logs, the browser).
+# The fast lane (about 30 s on two cores, against some 9 minutes for the whole
+# suite): everything but the tests marked slow (Monte Carlo and statistics,
+# subprocesses and live links, the shared real logs beyond one per format, whole
+# flights beyond one per area, the larger fuzzers, the viewer, the browser).
 test-fast: $(FULL)
 	$(BIN)/python -m pytest -q -m "not slow"
 

@@ -26,7 +26,8 @@ class _Diffs(Sink):
 
 
 @pytest.mark.simulation
-@pytest.mark.parametrize("log", ["px4_landing_nominal.tlog", "ardupilot_rng_dropout.tlog"])
+@pytest.mark.parametrize("log", [pytest.param("px4_landing_nominal.tlog", marks=pytest.mark.slow),
+                                 "ardupilot_rng_dropout.tlog"])
 def test_fused_against_autopilot_splits_into_datum_offset_and_spread(log):
     diffs = _Diffs()
     r = audit_file(SITL_LOGS / log, load_config(None), extra_sinks=[diffs])

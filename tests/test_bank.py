@@ -100,6 +100,7 @@ def test_bank_detects_a_different_filter():
     assert not np.allclose(bank.P[0], ref.P, rtol=1e-6)
 
 
+@pytest.mark.slow
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), p_baro=st.floats(0.0, 1.0), p_gnss=st.floats(0.0, 1.0),
        gm_sigma_m=st.sampled_from([3.0, 0.0]))

@@ -87,7 +87,7 @@ def augmented_reference(flight, model: Model, use_gnss: bool, sigma_z_m: float, 
 
 
 @pytest.mark.parametrize("kind", ["baro", "gnss"])
-@pytest.mark.parametrize("irregular", [0.0, 0.4])
+@pytest.mark.parametrize("irregular", [pytest.param(0.0, marks=pytest.mark.slow), 0.4])
 def test_differencing_equals_augmented_filter(kind, irregular):
     sched = Schedule(duration_s=20.0, imu_dt_s=0.02, irregular=irregular, baro_every=1, gnss_every=5)
     flight = paper_flight(seed=11, sensors=SENSORS, schedule=sched)

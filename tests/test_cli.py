@@ -65,6 +65,7 @@ class FakeClock:
         self.slept += s
 
 
+@pytest.mark.slow
 def test_replay_speed_factor_paces_by_vehicle_time(monkeypatch):
     """At 30x, each sample is released at a thirtieth of its vehicle time since the
     first: on a clock only the replay moves, the replay sleeps exactly the log's

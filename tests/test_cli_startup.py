@@ -40,7 +40,8 @@ def test_import_cli_pulls_in_no_scipy_stats_rerun_or_numba():
         assert name not in mods, f"import mavnav.cli imports {name}"
 
 
-@pytest.mark.parametrize("argv", [["--help"], ["audit", "--help"], ["run", "--help"], ["replay", "--help"]])
+@pytest.mark.parametrize("argv", [["--help"]] + [pytest.param(a, marks=pytest.mark.slow) for a in
+                                                 (["audit", "--help"], ["run", "--help"], ["replay", "--help"])])
 def test_help_imports_nothing_heavy(argv):
     code = ("import sys\nfrom mavnav.cli import main\n"
             f"try:\n    main({argv!r}, prog_name='mavnav')\nexcept SystemExit:\n    pass\n")
@@ -48,6 +49,7 @@ def test_help_imports_nothing_heavy(argv):
     assert not [m for m in HEAVY if m in mods], f"mavnav {' '.join(argv)} imports {[m for m in HEAVY if m in mods]}"
 
 
+@pytest.mark.slow
 def test_a_command_still_gets_what_it_needs(tmp_path):
     """The deferred imports happen when the command runs: covariance prints its table."""
     code = ("from mavnav.cli import main\n"

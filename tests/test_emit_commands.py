@@ -26,6 +26,7 @@ ACCEPTED, TEMP, DENIED, UNSUPPORTED, IN_PROGRESS = (
     R.MAV_RESULT_IN_PROGRESS)
 
 
+@pytest.mark.slow
 def test_requests_are_checked_retried_and_refusals_reported(caplog):
     ap_peer = Peer(sysid=1, compid=1)
     rates = tuple(parse_rate(s) for s in ("HIGHRES_IMU:50", "ATTITUDE:40", "SCALED_PRESSURE:20", "GPS_RAW_INT:5",

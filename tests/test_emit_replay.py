@@ -19,7 +19,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from tests.support.emit import Peer, texts_of, udp_sink
 from tests.support.paths import SCENARIOS, SITL_LOGS
 
-pytestmark = [pytest.mark.integration]
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 F32 = np.float32
 

@@ -341,7 +341,7 @@ def _run_both(items, cfg):
     return out
 
 
-@pytest.mark.parametrize("seed", [1, 2, 3, 4])
+@pytest.mark.parametrize("seed", [1] + [pytest.param(s, marks=pytest.mark.slow) for s in (2, 3, 4)])
 def test_compiled_imu_pass_gives_the_reference_floats(seed):
     """imu_kernel against _take_imu_reference/_integrate_reference: the same
     epochs (every float, by repr) and the same counters."""

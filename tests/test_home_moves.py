@@ -83,6 +83,7 @@ def _at(rows, t0_s, t1_s):
             if t0_s <= r.t_s - 5.0 < t1_s and r.height_fused_m == r.height_fused_m]
 
 
+@pytest.mark.slow
 def test_a_new_home_at_arming_moves_the_reported_heights_not_the_filters(tmp_path):
     path = arming_flight(tmp_path / "arming.tlog")
     rows = _run(path)

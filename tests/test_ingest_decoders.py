@@ -387,7 +387,8 @@ REPO = Path(__file__).resolve().parents[1]
 PX4_LOGS = sorted((REPO / "sitl_logs").glob("px4_*.tlog"))[:2]
 
 
-@pytest.mark.parametrize("which", ["odd"] + [p.name for p in PX4_LOGS])
+@pytest.mark.parametrize("which", ["odd"] + [p.name for p in PX4_LOGS[:1]]
+                         + [pytest.param(p.name, marks=pytest.mark.slow) for p in PX4_LOGS[1:]])
 def test_highres_imu_inline_matches_its_decoder(which, tmp_path, monkeypatch):
     path = _odd_highres_log(tmp_path) if which == "odd" else REPO / "sitl_logs" / which
     fast = _stream(path)

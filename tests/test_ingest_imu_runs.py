@@ -22,6 +22,10 @@ from tests.support.paths import SHARED_FLIGHTLOGS
 
 LOGS = ["frs_motor_failure_hexa.ulg", "frs_gps_interference.ulg", "aut_quadrotor_local.ulg",
         "SITL_wlichon_baseline_00000001.BIN"]
+# the fast lane keeps a ULog and the DataFlash log expanded and one ULog folded; the rest is slow
+SLOW = pytest.mark.slow
+EXPAND_LOGS = [LOGS[0], pytest.param(LOGS[1], marks=SLOW), pytest.param(LOGS[2], marks=SLOW), LOGS[3]]
+FOLD_LOGS = [LOGS[0]] + [pytest.param(name, marks=SLOW) for name in LOGS[1:]]
 
 _records: dict = {}
 
@@ -43,7 +47,7 @@ def _expanded(items) -> list:
 
 
 @pytest.mark.realdata
-@pytest.mark.parametrize("name", LOGS)
+@pytest.mark.parametrize("name", EXPAND_LOGS)
 def test_runs_expand_to_the_per_sample_stream(name):
     p, rec = _record(name)
     cfg = config_from_dict({})
@@ -87,7 +91,7 @@ class _Counting(OnboardSource):
 
 
 @pytest.mark.realdata
-@pytest.mark.parametrize("name", LOGS)
+@pytest.mark.parametrize("name", FOLD_LOGS)
 def test_pipeline_through_runs_is_the_per_sample_fold(name, tmp_path):
     p, rec = _record(name)
     cfg = config_from_dict({})

@@ -26,7 +26,8 @@ def _stream(path: Path) -> tuple[list[str], dict]:
     return out, src.stats.to_dict()
 
 
-@pytest.mark.parametrize("path", LOGS, ids=lambda p: p.name)
+@pytest.mark.parametrize("path", [pytest.param(p, marks=pytest.mark.slow) if p.name == "dronekit_copter_2015.tlog"
+                                  else p for p in LOGS], ids=lambda p: p.name)  # the long real flight is slow
 def test_inline_time_paths_match_their_references(path, monkeypatch):
     fast = _stream(path)
     monkeypatch.setattr(Normaliser, "_boot_ms", Normaliser._boot_ms_reference)

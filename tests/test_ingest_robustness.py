@@ -188,6 +188,7 @@ def test_fuzz_random_bytes_never_raise(tmp_path, data):
     _drain(p)
 
 
+@pytest.mark.slow
 @_FUZZ
 @given(cut=st.integers(min_value=0, max_value=30000), flips=st.lists(st.integers(0, 10**9), max_size=40))
 def test_fuzz_truncated_and_bit_flipped_tlogs_never_raise(tmp_path, ingest_clean_log, cut, flips):
@@ -205,6 +206,7 @@ def test_fuzz_truncated_and_bit_flipped_tlogs_never_raise(tmp_path, ingest_clean
                 assert math.isfinite(s.f_up_mps2)
 
 
+@pytest.mark.slow
 @_FUZZ
 @given(seed=st.integers(0, 2**32 - 1))
 def test_fuzz_spliced_records_never_raise(tmp_path, ingest_clean_log, seed):

@@ -95,6 +95,7 @@ def test_unkept_subscriptions_read_light_leave_the_same_state(name, monkeypatch)
 
 
 @pytest.mark.realdata
+@pytest.mark.slow
 def test_damaged_copies_decode_alike_with_light_subscriptions(tmp_path, monkeypatch):
     """Bytes flipped in the definitions and in the subscriptions: the same record (or the same error)."""
     p = SHARED_FLIGHTLOGS / "frs_motor_failure_hexa.ulg"

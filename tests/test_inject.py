@@ -110,6 +110,7 @@ def test_accel_bias_step_adds_to_the_vertical_specific_force(tmp_path, px4_log):
     assert n == pytest.approx(200, abs=2)
 
 
+@pytest.mark.slow
 def test_link_loss_and_reboot_on_simulated_log(tmp_path, px4_log):
     out, rep = inject_bytes(px4_log, [parse_fault("link_loss:onset=5,duration=2"),
                                       parse_fault("reboot:onset=20,duration=3")])

@@ -157,6 +157,7 @@ def test_reboot_on_the_console_in_the_csv_and_in_the_summary_span(tmp_path):
     assert "1 reboots" in line
 
 
+@pytest.mark.slow
 def test_link_loss_is_an_event_row_in_the_csv_while_it_lasts(tmp_path):
     recs = tlog_records(LOGS / "px4_hover_gnss_step.tlog")[:4000]
     clock = ReceiveClock()

@@ -3,6 +3,8 @@ and changes nothing in the monitor's result; the fold is deterministic."""
 
 from __future__ import annotations
 
+import pytest
+
 from mavnav.config import load_config
 from mavnav.ingest import TlogSource
 from mavnav.pipeline import run
@@ -41,6 +43,7 @@ def _run(path, sinks):
     return run(TlogSource(path, cfg.ingest), cfg, sinks)
 
 
+@pytest.mark.slow
 def test_failing_sink_is_dropped_and_changes_nothing():
     path = LOGS / "px4_hover_gnss_step.tlog"
     a, b = Recorder(), Recorder()

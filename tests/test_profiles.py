@@ -21,6 +21,7 @@ def test_profiles_load(name, limit):
     assert cfg.monitor.alert_limit_m == limit and cfg.monitor.time_to_alarm_s == 1.0
 
 
+@pytest.mark.slow
 def test_stricter_profile_is_unavailable_more_often():
     """Same nominal flight: the CAT II/III integrity risk (5e-9) needs a larger k than
     CAT I (1e-6) against a smaller alert limit, so integrity is available less:

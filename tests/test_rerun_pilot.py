@@ -115,6 +115,7 @@ def test_every_series_reads_on_the_light_and_the_dark_theme():
     assert contrast(bp.FUSED_COLOUR, WHITE) >= 3.0  # the pilot's line: like a graphic object (WCAG 1.4.11)
 
 
+@pytest.mark.slow
 def test_refused_raw_heights_stay_off_the_pilots_plot(gnss_step):
     capture, rec, fault = gnss_step
     onset, end = fault["onset_vehicle_s"], fault["onset_vehicle_s"] + fault["duration_s"]
@@ -138,6 +139,7 @@ def test_refused_raw_heights_stay_off_the_pilots_plot(gnss_step):
     assert sorted(raw_t) == sorted(s.t_us * 1000 for s in capture.samples if isinstance(s, GnssHeight))
 
 
+@pytest.mark.slow
 def test_the_readout_says_height_and_state_in_large_type(gnss_step):
     capture, rec, _ = gnss_step
     docs = rec.docs[bp.READOUT]

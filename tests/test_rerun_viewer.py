@@ -94,6 +94,7 @@ def _warnings(caplog):
 # A viewer that goes away
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("live", [True, False], ids=["live-rows", "replay-columns"])
 def test_viewer_dropped_mid_run_changes_nothing_and_is_reported_once(flight, tmp_path, grpc_server, caplog, live):
     proc, port = grpc_server
@@ -114,6 +115,7 @@ def test_viewer_dropped_mid_run_changes_nothing_and_is_reported_once(flight, tmp
     assert sink.lost and not sink.enabled  # nothing left to write to: logging stopped
 
 
+@pytest.mark.slow
 def test_viewer_lost_but_rrd_still_written(flight, tmp_path, grpc_server, caplog):
     proc, port = grpc_server
     rrd = tmp_path / "kept.rrd"
@@ -126,6 +128,7 @@ def test_viewer_lost_but_rrd_still_written(flight, tmp_path, grpc_server, caplog
     assert len(rec.scalars["heights/fused"]) == summary.epochs == len(rows)
 
 
+@pytest.mark.slow
 def test_no_viewer_at_the_url_is_reported_and_the_run_goes_on(flight, tmp_path):
     said = []
     rrd = tmp_path / "alone.rrd"

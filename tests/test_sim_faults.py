@@ -49,21 +49,23 @@ BASE = {
 def clean(tmp_path_factory):
     return by_time(decode(tmp_path_factory.mktemp("clean"), simulate(scenario_from_dict(BASE)).tlog, "a.tlog"))
 
-# kind, fault spec (onset 15 s), message types allowed to change, message interval there
+# kind, fault spec (onset 15 s), message types allowed to change, message interval there;
+# one fault of each source in the fast lane, the others slow (pytest.param(..., marks=SLOW))
+SLOW = pytest.mark.slow
 CASES = [
     ({"kind": "gnss_step", "magnitude": 10.0}, {"GPS_RAW_INT"}, 0.1),
-    ({"kind": "gnss_ramp", "magnitude": 0.5}, {"GPS_RAW_INT"}, 0.1),
-    ({"kind": "gnss_noise", "magnitude": 3.0}, {"GPS_RAW_INT"}, 0.1),
-    ({"kind": "gnss_dropout", "mode": "nofix"}, {"GPS_RAW_INT"}, 0.1),
-    ({"kind": "gnss_dropout", "mode": "silent"}, {"GPS_RAW_INT"}, 0.1),
+    pytest.param({"kind": "gnss_ramp", "magnitude": 0.5}, {"GPS_RAW_INT"}, 0.1, marks=SLOW),
+    pytest.param({"kind": "gnss_noise", "magnitude": 3.0}, {"GPS_RAW_INT"}, 0.1, marks=SLOW),
+    pytest.param({"kind": "gnss_dropout", "mode": "nofix"}, {"GPS_RAW_INT"}, 0.1, marks=SLOW),
+    pytest.param({"kind": "gnss_dropout", "mode": "silent"}, {"GPS_RAW_INT"}, 0.1, marks=SLOW),
     ({"kind": "rng_dropout", "mode": "invalid"}, {"DISTANCE_SENSOR"}, 0.05),
-    ({"kind": "rng_dropout", "mode": "silent"}, {"DISTANCE_SENSOR"}, 0.05),
-    ({"kind": "rng_stuck"}, {"DISTANCE_SENSOR"}, 0.05),
-    ({"kind": "rng_spikes", "magnitude": 8.0, "probability": 1.0}, {"DISTANCE_SENSOR"}, 0.05),
-    ({"kind": "rng_out_of_range", "magnitude": 5.0}, {"DISTANCE_SENSOR"}, 0.05),
+    pytest.param({"kind": "rng_dropout", "mode": "silent"}, {"DISTANCE_SENSOR"}, 0.05, marks=SLOW),
+    pytest.param({"kind": "rng_stuck"}, {"DISTANCE_SENSOR"}, 0.05, marks=SLOW),
+    pytest.param({"kind": "rng_spikes", "magnitude": 8.0, "probability": 1.0}, {"DISTANCE_SENSOR"}, 0.05, marks=SLOW),
+    pytest.param({"kind": "rng_out_of_range", "magnitude": 5.0}, {"DISTANCE_SENSOR"}, 0.05, marks=SLOW),
     ({"kind": "baro_step", "magnitude": 4.0}, {"SCALED_PRESSURE", "HIGHRES_IMU"}, 0.04),
-    ({"kind": "baro_ramp", "magnitude": 0.4}, {"SCALED_PRESSURE", "HIGHRES_IMU"}, 0.04),
-    ({"kind": "baro_freeze"}, {"SCALED_PRESSURE", "HIGHRES_IMU"}, 0.04),
+    pytest.param({"kind": "baro_ramp", "magnitude": 0.4}, {"SCALED_PRESSURE", "HIGHRES_IMU"}, 0.04, marks=SLOW),
+    pytest.param({"kind": "baro_freeze"}, {"SCALED_PRESSURE", "HIGHRES_IMU"}, 0.04, marks=SLOW),
     ({"kind": "accel_bias_step", "magnitude": 0.3}, {"HIGHRES_IMU"}, 0.02),
     ({"kind": "rate_drop", "magnitude": 0.25, "messages": ["GPS_RAW_INT"]}, {"GPS_RAW_INT"}, 0.1 * 4),
 ]
@@ -99,6 +101,7 @@ def test_fault_onset_and_scope(tmp_path, clean, spec, allowed, interval):
     assert set(truth["fault_kind"][active]) == {spec["kind"]}
 
 
+@pytest.mark.slow
 def test_link_loss_removes_everything_but_the_vehicle_keeps_counting(tmp_path):
     scn = scenario_from_dict(dict(BASE, faults=[{"kind": "link_loss", "onset_s": 10.0, "duration_s": 3.0}]))
     msgs = decode(tmp_path, simulate(scn).tlog, "l.tlog")
@@ -115,6 +118,7 @@ def test_link_loss_removes_everything_but_the_vehicle_keeps_counting(tmp_path):
     assert (msgs[gap + 1].get_seq() - msgs[gap].get_seq()) % 256 != 1
 
 
+@pytest.mark.slow
 def test_reboot_restarts_the_boot_clock_and_sequence(tmp_path):
     scn = scenario_from_dict(dict(BASE, boot_time_at_start_s=100.0,
                                   faults=[{"kind": "reboot", "onset_s": 120.0, "duration_s": 2.5}]))

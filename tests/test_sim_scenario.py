@@ -116,6 +116,7 @@ SITL = ROOT / "sitl_logs"
 SITL_NAMES = sorted(p.name[: -len(".tlog")] for p in SITL.glob("*.tlog"))
 
 
+@pytest.mark.slow
 def test_committed_sitl_logs_match_their_scenarios():
     """Golden files: the committed logs are exactly what their scenarios generate."""
     from mavnav.sim import simulate

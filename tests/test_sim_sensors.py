@@ -89,6 +89,7 @@ def test_rotation_helpers_agree_with_frames():
 # ---------------------------------------------------------------- INS
 
 
+@pytest.mark.slow
 def test_imu_noise_and_bias_match_configuration(tmp_path):
     ins = {"sigma_a_mps2": 0.03, "alpha_a_per_s": 2.0, "bias_up_mps2": 0.07}
     scn = _scenario(
@@ -122,6 +123,7 @@ def test_imu_noise_and_bias_match_configuration(tmp_path):
     assert abs(f_b[on_ground, 2].mean() + G + ins["bias_up_mps2"]) < 4 * q / math.sqrt(on_ground.sum())
 
 
+@pytest.mark.slow
 def test_attitude_moves_and_yaw_is_not_zero(tmp_path):
     scn = _scenario(duration_s=60)
     res = simulate(scn)
@@ -142,6 +144,7 @@ def test_attitude_moves_and_yaw_is_not_zero(tmp_path):
 # ---------------------------------------------------------------- barometer
 
 
+@pytest.mark.slow
 def test_baro_bias_sigma_and_gauss_markov_correlation(tmp_path):
     baro = {"sigma_bb_m": 0.5, "gamma_bb_per_s": 5.0, "bias_m": 1.7}
     scn = _scenario(
@@ -318,6 +321,7 @@ def test_ardupilot_units_on_the_wire(tmp_path):
     assert {hp.altitude for hp in msgs["HOME_POSITION"]} == {584000}
 
 
+@pytest.mark.slow
 def test_px4_profile_messages_and_rates(tmp_path):
     scn = _scenario(duration_s=30, rates_hz={"HIGHRES_IMU": 200})
     res = simulate(scn)

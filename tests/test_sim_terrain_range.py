@@ -97,7 +97,7 @@ def test_bad_terrain_is_refused_by_name(patches, needle):
         scenario_from_dict({"duration_s": 30, "trajectory": {"kind": "hover"}, "terrain": patches})
 
 
-@pytest.mark.parametrize("oor_quality,in_quality", [(1, 100), (0, 0)])
+@pytest.mark.parametrize("oor_quality,in_quality", [pytest.param(1, 100, marks=pytest.mark.slow), (0, 0)])
 def test_out_of_range_readings_are_encoded_as_autopilots_do(tmp_path, oor_quality, in_quality):
     """Above max_m (the descent starts at 55 m, max 40 m) and below min_m (touchdown): the
     reading is sent beyond the limit, with signal_quality 1 (invalid) or 0 (unknown)."""
@@ -127,6 +127,7 @@ def test_slow_telemetry_sends_every_sensor_stream_at_its_rate(tmp_path):
     assert "SCALED_IMU2" not in n and "HIGHRES_IMU" not in n
 
 
+@pytest.mark.slow
 def test_gnss_wander_is_gauss_markov_with_the_configured_tau():
     """White noise off, a long flight: the GNSS error's autocorrelation at lag tau is 1/e,
     its spread the configured sigma, and the reported v_acc the scenario's."""

@@ -58,7 +58,7 @@ def test_table():
     assert not_applicable_reason(kind="copter") is None
 
 
-@pytest.mark.parametrize("mav_type,word", [(12, "submarine"), (11, "surface vessel")])
+@pytest.mark.parametrize("mav_type,word", [pytest.param(12, "submarine", marks=pytest.mark.slow), (11, "surface vessel")])
 def test_water_vehicle_drops_height_samples(tmp_path, mav_type, word):
     control, cst = _kinds(SIM_TLOG)
     n_height = sum(isinstance(s, (BaroHeight, GnssHeight, RangeHeight)) for s in control)
