@@ -101,10 +101,6 @@ def flight(path: str, cfg_dict: Optional[dict] = None) -> dict:
                     bank.start(ep.t_us, ep.baro_m)
                     t0 = ep.t_us
                     continue
-                if ep.gnss is not None and ep.gnss.vel_up_mps == ep.gnss.vel_up_mps:
-                    # as the monitor does (monitor/hypotheses.py): a receiver with a
-                    # Doppler velocity has its slow wander modelled from then on
-                    bank.open_gnss_error(cfg.sensors.gnss.gm_sigma_with_doppler_m)
                 st = bank.step(ep)
                 acc.epochs += 1
                 for name, c, slot in ROWS:

@@ -375,17 +375,6 @@ class ChannelBank:
                 return self.Pc[p].T
         raise ValueError((a, b))
 
-    def open_gnss_error(self, sigma_m: float) -> bool:
-        """Model the GNSS's slow error (the Gauss-Markov state ``b_g``) from now
-        on, if it is not modelled yet: every channel's ``b_g`` gets its
-        stationary variance as a fresh, independent prior (as at a start with
-        the state on). Returns whether it changed anything."""
-        if sigma_m <= 0.0 or self.model.gnss_gm_sigma_m > 0.0:
-            return False
-        self.model = dataclasses.replace(self.model, gnss_gm_sigma_m=sigma_m)
-        self.P[:, GB, GB] += sigma_m * sigma_m
-        return True
-
     def reinit(self, c: int, t_us: int, baro_m: Optional[float], model: Optional[Model] = None) -> None:
         """(Re)initialise channel ``c`` from the prior (``model``'s, else the
         bank's), conditioned on a baro sample."""

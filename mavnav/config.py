@@ -64,16 +64,13 @@ class GnssConfig(_Section):
     flights. gm_sigma_m 0 turns the Gauss-Markov state off (paper mode)."""
 
     sigma_z_m: float = Field(2.0, gt=0)  # vertical noise when v_acc is not used
-    # Off (0) by default until a GNSS drift test exists: at 3 m / 300 s the
-    # state absorbs a 0.5 m/s ramp and the SITL ramp alarm comes 24 s late.
-    gm_sigma_m: float = Field(0.0, ge=0)  # RMS of the Gauss-Markov error
+    # On from the start in adaptive mode (paper mode: off). 4 m / 300 s gives the
+    # median flight's baro-GNSS structure function (docs/error_models.md). The
+    # state follows a slow GNSS ramp as it follows the wander: the ramp is the
+    # drift tests' to catch, against the receiver's Doppler (monitor/doppler.py)
+    # or, without one, against the baro (monitor/drift.py).
+    gm_sigma_m: float = Field(4.0, ge=0)  # RMS of the Gauss-Markov error
     gm_tau_s: float = Field(300.0, gt=0)  # its correlation time
-    # The drift test exists where the receiver reports its Doppler vertical
-    # velocity (monitor/doppler.py: a 0.5 m/s position ramp fails it within
-    # 3-4 s), so there the wander is modelled from the first such sample: 4 m /
-    # 300 s gives the median flight's baro-GNSS structure function
-    # (docs/error_models.md). 0 keeps it off; adaptive mode only.
-    gm_sigma_with_doppler_m: float = Field(4.0, ge=0)
     use_v_acc: bool = True  # take sigma from the receiver's v_acc when it reports one
     v_acc_floor_m: float = Field(0.3, ge=0)  # never trust a receiver more than this
 
@@ -254,6 +251,7 @@ class AdaptiveFeatures(_Section):
     doppler_check: bool = True  # GNSS altitude against its own Doppler velocity (monitor/doppler.py)
     ins_doppler_check: bool = True  # the INS's velocity change against the Doppler's (monitor/doppler.py)
     baro_doppler_check: bool = True  # the baro's change against the Doppler's integral (alerts only)
+    gnss_drift_check: bool = True  # without a Doppler: the GNSS's drift rate against the baro (monitor/drift.py)
 
 
 class MonitorConfig(_Section):
@@ -406,6 +404,16 @@ class MonitorConfig(_Section):
     # landing, and with the 4 s reading it adds cautions on 2 Hz receivers
     # (BENCHMARKS.md, session 9).
     baro_doppler_scale_frac: float = Field(0.0, ge=0, le=1)
+    # The GNSS altitude's drift against the baro where the receiver reports no
+    # Doppler velocity (features.gnss_drift_check, monitor/drift.py): the slope
+    # of GNSS - baro fitted over gnss_drift_window_s, against k(false_alarm_prob)
+    # times the fit's white-noise error and gnss_drift_sigma_mps in quadrature,
+    # times its measured scale (it only widens). gnss_drift_sigma_mps: the
+    # healthy receivers' own drift rate; the slope over 10 s stays within
+    # 0.02-0.23 m/s on the healthy flights here (99.9th percentile;
+    # bench/drift_stats.py), 0.23 being 4.4 sigma at 0.05 m/s.
+    gnss_drift_window_s: float = Field(10.0, gt=0)
+    gnss_drift_sigma_mps: float = Field(0.05, gt=0)
     # Rangefinder envelope: readings refused below its minimum (or above its
     # maximum) while the other sources put the vehicle more than margin inside
     # its range, for most of a window, are a rangefinder failure.

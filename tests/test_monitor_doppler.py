@@ -223,46 +223,6 @@ def test_an_accelerometer_bias_on_a_real_flight_is_the_ins_not_the_gnss(onset_s)
     assert back and back[0].t_s > onset_s + 20.0
 
 
-# ---------------------------------------------------------------- the GNSS's slow error where a Doppler vouches
-
-
-def _logic_after_one_gnss_sample(vel_up_mps, **features):
-    from mavnav.bank import ChannelBank
-    from mavnav.channel import AuxMeasurement, EpochInputs, Model
-    from mavnav.monitor.hypotheses import HypothesisLogic
-
-    cfg = config_from_dict({"monitor": {"features": features}})
-    bank = ChannelBank(Model.from_config(cfg))
-    for c in range(3):
-        bank.reinit(c, 1_000_000, 0.0)
-    logic = HypothesisLogic(cfg, bank)
-    logic.start(1_000_000, 0)
-    ep = EpochInputs(t_us=1_200_000, dt_s=0.2, dp_m=0.0, dv_mps=0.0, baro_m=None,
-                     gnss=AuxMeasurement(height_m=0.0, sigma_m=1.0, age_s=0.0, vel_up_mps=vel_up_mps))
-    logic.pre(ep)
-    return bank
-
-
-@pytest.mark.unit
-def test_a_receiver_with_a_doppler_velocity_has_its_slow_error_modelled():
-    """The Gauss-Markov GNSS error (sensors.gnss.gm_sigma_with_doppler_m) is
-    opened at the first GNSS sample that carries a Doppler velocity: there the
-    Doppler test catches the ramps the state would absorb. Without one (every
-    MAVLink telemetry link) it stays off, and so with the Doppler test off."""
-    from mavnav.channel import GB
-
-    before = config_from_dict({}).sensors.gnss
-    assert before.gm_sigma_m == 0.0 and before.gm_sigma_with_doppler_m > 0.0
-    bank = _logic_after_one_gnss_sample(0.3)
-    s = before.gm_sigma_with_doppler_m
-    assert bank.model.gnss_gm_sigma_m == s
-    assert all(bank.P[c, GB, GB] == pytest.approx(s * s) for c in range(3))
-    assert _logic_after_one_gnss_sample(math.nan).model.gnss_gm_sigma_m == 0.0
-    assert _logic_after_one_gnss_sample(0.3, doppler_check=False).model.gnss_gm_sigma_m == 0.0
-    # once open, a second call changes nothing
-    assert bank.open_gnss_error(s) is False
-
-
 @pytest.mark.unit
 def test_the_baro_doppler_test_has_its_own_longer_window():
     """A 0.5 m/s baro ramp against a still Doppler: over the baro's 10 s window

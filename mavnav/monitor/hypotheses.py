@@ -50,6 +50,7 @@ from ..config import Config
 from .cusum import Cusum, threshold_for
 from .decision import Decision, diff_sigmas, pair_reports
 from .doppler import MIN_SPAN_FRAC, DopplerCheck, Exceedance, InsDopplerCheck
+from .drift import DriftCheck
 from .fusion import fuse_heights
 from .inscheck import InsBaroCheck
 from .kink import KinkSeries, MeanSquare, isolate, kink_fit, onsets
@@ -129,7 +130,6 @@ class HypothesisLogic:
         self.coast_us = int(m.coast_reinit_s * 1e6)
         self.hold_restart_us = int(m.hold_restart_s * 1e6)
         self.warmup_us = int(m.warmup_s * 1e6)
-        self.gm_with_doppler_m = cfg.sensors.gnss.gm_sigma_with_doppler_m
         self.kink_margin = chi2_gate(m.kink_isolation_prob)
         self.t0_us = 0
         self._h_cache: dict[int, tuple] = {}  # rate key -> (h, slow over fast threshold)
@@ -218,6 +218,10 @@ class HypothesisLogic:
                                          scale_frac=m.baro_doppler_scale_frac)
         self.scale["baro_doppler"] = ResidualScale(m.window_scale_tau_s, 1.0, sc[2], max_phi=0.0)
         self.baro_doppler_ex = Exceedance()
+        # without a Doppler: the GNSS altitude's drift rate against the baro
+        self.drift = DriftCheck(m.gnss_drift_window_s, m.doppler_max_gap_s)
+        self.scale["drift"] = ResidualScale(m.window_scale_tau_s, 1.0, sc[2], max_phi=0.0)
+        self.drift_ex = Exceedance()
         # the INS's velocity change against the Doppler's: the check, its scale,
         # this epoch's Doppler sample (taken after the epoch's INS increment)
         self.ins_doppler = InsDopplerCheck(m.doppler_window_s, m.doppler_max_gap_s)
@@ -375,11 +379,9 @@ class HypothesisLogic:
         self.pending_raw[c] = (aux.height_m - aux.age_s * self.bank.x[c, 1], aux.sigma_m)
         self.sensor_var_floor[c] = aux.sigma_m * aux.sigma_m
         if c == GNSS and self.f.doppler_check:
-            if aux.vel_up_mps == aux.vel_up_mps:
-                # a receiver with a Doppler velocity: its position's slow wander is
-                # modelled, and a ramp is the Doppler test's to catch
-                self.bank.open_gnss_error(self.gm_with_doppler_m)
             self._push_doppler(t - int(aux.age_s * 1e6), aux)
+        if c == GNSS and self.f.gnss_drift_check:
+            self._push_drift(t - int(aux.age_s * 1e6), aux)
         if c == GNSS and self.f.ins_doppler_check:
             self.pending_doppler = (t, aux.vel_up_mps)
         return last
@@ -428,6 +430,50 @@ class HypothesisLogic:
             if iv == iv and abs(t_meas - self.last_baro_us) <= 2e6 * iv:
                 b = self.last_baro_m + aux.vel_up_mps * (t_meas - self.last_baro_us) * 1e-6
                 self._push_window(self.baro_doppler, "baro_doppler", self.baro_doppler_ex, t_meas, b, aux.vel_up_mps)
+
+    def _push_drift(self, t_meas: int, aux) -> None:
+        """A GNSS sample without a Doppler velocity into the drift check
+        (:mod:`.drift`): its altitude less the latest baro, carried to its time
+        by the baro+INS channel's velocity. A receiver with a Doppler has the
+        Doppler tests instead."""
+        d = self.drift
+        iv = self.rates["baro_ins"].interval_s
+        # either sensor out: its readings then are no reference for the drift after
+        if (aux.vel_up_mps == aux.vel_up_mps or self.last_baro_m is None or iv != iv
+                or abs(t_meas - self.last_baro_us) > 2e6 * iv or {"gnss", "baro_ins"} & self.excluded):
+            d.clear()
+            self.drift_ex.reset()
+            return
+        b = self.last_baro_m + float(self.bank.x[BARO, 1]) * (t_meas - self.last_baro_us) * 1e-6
+        slope = d.push(t_meas, aux.height_m - b)
+        if slope is None:
+            self.drift_ex.reset()
+            return
+        sigma = self._drift_sigma()
+        thr = self.k_cmp * sigma * self.scale["drift"].factor
+        self.drift_ex.update(t_meas, abs(slope) > thr)
+        if abs(slope) <= self.m.suspect_frac * thr:
+            self.scale["drift"].push(t_meas, slope / sigma)
+
+    def _drift_sigma(self) -> float:
+        return math.hypot(self.drift.last_white_sd_mps, self.m.gnss_drift_sigma_mps)
+
+    def _drift_verdict(self, t: int) -> Optional[Verdict]:
+        """The GNSS altitude's drift rate against the baro (no Doppler): a
+        failure implicates the GNSS and the baro; a pass rules nothing out.
+        Its size: the drift over the window; as the GNSS would make it, none
+        that its innovations show (the Gauss-Markov state follows a ramp), so
+        a GNSS innovation pass cannot clear it."""
+        d = self.drift
+        if (not self.f.gnss_drift_check or {"gnss", "baro_ins"} & self.excluded or self._warm("gnss", t)
+                or d.last_us is None or t - d.last_us > self.stale_us[GNSS] or d.last_slope_mps != d.last_slope_mps):
+            return None
+        thr = self.k_cmp * self._drift_sigma() * self.scale["drift"].factor
+        e = d.last_slope_mps
+        txt = (f"GNSS altitude drifted {e:+.2f} m/s against the baro over {d.last_span_s:.0f} s "
+               f"(threshold {thr:.2f} m/s)")
+        return self._graded("GNSS/baro drift", abs(e), thr, self.drift_ex, t, frozenset(("gnss", "baro")), txt,
+                            fail_scale_m=abs(e) * d.last_span_s, sizes={"gnss": 0.0})
 
     def _doppler_verdict(self, t: int) -> Optional[Verdict]:
         """The GNSS altitude against its own Doppler velocity
@@ -869,16 +915,19 @@ class HypothesisLogic:
             return None
         return float(num[0] / den[0]), self.kink_sd[key].sd / math.sqrt(float(den[0]))
 
-    def _kink_verdicts(self, t: int, aux) -> list[Verdict]:
-        """For an aux test that implicates its sensor and the baro: which of the
-        two bent against the INS (a pass that rules the other out), if the
-        flight's own kink scatter lets the INS tell."""
+    def _kink_verdicts(self, t: int, aux, drift: Optional[Verdict]) -> list[Verdict]:
+        """For an aux test (the sensor's innovations; for the GNSS also its
+        drift against the baro) that implicates its sensor and the baro: which
+        of the two bent against the INS (a pass that rules the other out), if
+        the flight's own kink scatter lets the INS tell."""
         m = self.m
         out = []
         if "baro_ins" in self.excluded:
             return out
         ts = t * 1e-6
         for v, (_, name) in zip(aux, AUX):
+            if name == "gnss" and (v is None or v.level == "pass"):
+                v = drift
             if v is None or v.level == "pass" or "baro" not in v.implicates:
                 continue
             keys = (f"{name}-baro", f"{name}-ins", "baro-ins")
@@ -983,11 +1032,12 @@ class HypothesisLogic:
         # innovations can mean (the channel runs on it between its samples)
         self.ins_doubt = any(v is not None and v.level != "pass" for v in ins_tests)
         aux = (self._aux_verdict(GNSS, "gnss", t), self._aux_verdict(RNG, "rangefinder", t))
+        drift = self._drift_verdict(t)
         verdicts = [v for v in (*aux, *ins_tests, self._raw_verdict(), envelope, self._doppler_verdict(t),
-                                self._baro_doppler_verdict(t))
+                                self._baro_doppler_verdict(t), drift)
                     if v is not None] + self._level_verdicts(t)
         if self.f.kink_isolation and self.slow_imu_hz is None:  # the INS witnesses the kinks
-            verdicts += self._kink_verdicts(t, aux)
+            verdicts += self._kink_verdicts(t, aux, drift)
         return verdicts, aux
 
     def _slow_ins(self, v: Optional[Verdict]) -> Optional[Verdict]:

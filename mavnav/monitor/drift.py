@@ -1,0 +1,91 @@
+"""The GNSS altitude's drift against the baro, where the receiver gives no
+Doppler velocity.
+
+The GNSS's slow error (multipath, satellite geometry) is modelled as a
+Gauss-Markov state in every channel (``sensors.gnss.gm_sigma_m``): without it a
+channel averages a wandering receiver's fixes as if independent and claims
+centimetres. The state follows a slow GNSS ramp as it follows the wander, so
+the innovation CUSUM cannot see a 0.5 m/s ramp. What tells the two apart is
+the rate: real receivers wander by metres per minute, a ramp fault moves
+their altitude by metres in seconds. Where the receiver reports its Doppler
+velocity, :mod:`.doppler` measures that rate against the receiver's own
+velocity. Without one, this check measures it against the baro: the slope,
+fitted by least squares over ``window_s``, of
+
+    d(t) = h_gnss(t) - h_baro(t)
+
+(the vehicle's motion cancels). Its error is the samples' white noise through
+the fit, ``sigma_w / sqrt(sum (t - mean t)^2)``, with ``sigma_w`` measured
+from the window's own second differences (a ramp has none), and the healthy
+receivers' drift rate, which the caller adds.
+
+A failure implicates the GNSS and the baro: either can ramp. A pass rules
+nothing out (a ramp slower than the threshold passes while its error grows).
+
+Pure: samples in, the slope out; the caller owns thresholds and verdicts.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from collections import deque
+from typing import Optional
+
+from .doppler import MIN_SPAN_FRAC, _restart_on_gap, _window_first
+
+# A fit needs this many samples (and the window spanned to MIN_SPAN_FRAC).
+MIN_SAMPLES = 5
+# Median absolute deviation to sigma, for a normal variable.
+MAD_TO_SIGMA = 1.0 / 0.6745
+# A second difference of white noise has sqrt(6) times its sigma.
+SECOND_DIFF_GAIN = math.sqrt(6.0)
+
+
+class DriftCheck:
+    """The slope of ``d`` over ``window_s`` at each sample; samples further
+    apart than ``max_gap_s`` restart the window."""
+
+    __slots__ = ("window_us", "max_gap_us", "min_span_us", "hist", "last_slope_mps", "last_white_sd_mps",
+                 "last_span_s", "last_us")
+
+    def __init__(self, window_s: float, max_gap_s: float):
+        self.window_us = int(window_s * 1e6)
+        self.max_gap_us = int(max_gap_s * 1e6)
+        self.min_span_us = MIN_SPAN_FRAC * self.window_us
+        self.hist: deque = deque()  # (t_us, d_m)
+        self.last_slope_mps = math.nan
+        self.last_white_sd_mps = math.nan  # the slope's error from the window's white noise
+        self.last_span_s = math.nan
+        self.last_us: Optional[int] = None
+
+    def clear(self) -> None:
+        self.hist.clear()
+        self.last_slope_mps = math.nan
+
+    def push(self, t_us: int, d_m: float) -> Optional[float]:
+        """The slope (m/s) at this sample, or None while the window holds less
+        than ``MIN_SPAN_FRAC`` of its length or ``MIN_SAMPLES`` samples."""
+        if not math.isfinite(d_m):
+            self.clear()
+            return None
+        h = self.hist
+        _restart_on_gap(h, t_us, self.max_gap_us)
+        h.append((t_us, d_m))
+        first = _window_first(h, t_us, self.window_us, self.min_span_us)
+        if first is None or len(h) < MIN_SAMPLES:
+            return None
+        ts = [(s[0] - t_us) * 1e-6 for s in h]
+        ds = [s[1] for s in h]
+        n = len(ts)
+        t_mean = sum(ts) / n
+        d_mean = sum(ds) / n
+        sxx = sum((x - t_mean) ** 2 for x in ts)
+        sxy = sum((x - t_mean) * (y - d_mean) for x, y in zip(ts, ds))
+        second = [abs(ds[i + 1] - 2.0 * ds[i] + ds[i - 1]) for i in range(1, n - 1)]
+        white_m = statistics.median(second) * MAD_TO_SIGMA / SECOND_DIFF_GAIN
+        self.last_slope_mps = sxy / sxx
+        self.last_white_sd_mps = white_m / math.sqrt(sxx)
+        self.last_span_s = -ts[0]
+        self.last_us = t_us
+        return self.last_slope_mps
