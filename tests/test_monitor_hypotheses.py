@@ -272,6 +272,35 @@ def test_an_ins_failure_on_a_sparse_imu_is_only_a_suspect():
     assert logic._slow_ins(passed) is passed and logic._slow_ins(None) is None
 
 
+def test_a_baro_isolated_while_its_stream_is_sparse_is_held_not_alarmed():
+    """With the baro's own rate below min_baro_rate_hz an isolation on the
+    baro is held as ambiguous (caution, out of the output, no alarm); at its
+    nominal rate, and for an isolation that is not the baro's, the judgement
+    stands."""
+    from mavnav.bank import ChannelBank
+    from mavnav.channel import Model
+    from mavnav.config import config_from_dict
+    from mavnav.monitor.hypotheses import HypothesisLogic
+
+    cfg = config_from_dict({})
+    logic = HypothesisLogic(cfg, ChannelBank(Model.from_config(cfg)))
+    logic.start(0, 0)
+    failed = Verdict("baro level against rangefinder", "fail", frozenset((B, R)), stat=1.5, threshold=1.37,
+                     text="baro +1.50 m from the rangefinder channel", scale_m=1.5)
+    isolated = judge([failed, clear(R)])
+    assert isolated.situation == "isolated" and isolated.state == "alarm"
+    for k in range(12):  # 10 Hz
+        logic.rates["baro_ins"].push(k * 100_000)
+    assert logic._slow_blame(isolated) is isolated
+    for k in range(1, 9):  # then 2 Hz: the rate follows within a few samples
+        logic.rates["baro_ins"].push(1_100_000 + k * 500_000)
+    held = logic._slow_blame(isolated)
+    assert held.situation == "ambiguous" and held.state == "caution" and not held.enters_output
+    assert held.sources == isolated.sources and "too sparse" in held.reason
+    gnss_fault = judge([Verdict("GNSS/Doppler", "fail", frozenset((G,)), stat=3.0, threshold=1.0, scale_m=3.0)])
+    assert logic._slow_blame(gnss_fault) is gnss_fault
+
+
 SKEW = SHARED / "tlogs" / "other" / "copter_sitl_speedup_clock_skew.tlog"
 
 

@@ -85,6 +85,9 @@ def _last(q: deque, n: int) -> list:
 # and the rate assumed before the second sample.
 RATE_EMA_WEIGHT = 0.1
 RATE_BEFORE_DATA_HZ = 10.0
+# A stream is too slow below this fraction of its required rate (a nominal
+# 5 Hz stream jitters; the core's rate check allows the same 10 %).
+SLOW_RATE_FRAC = 0.9
 # CUSUM thresholds are computed once per rate step of this many hertz.
 CUSUM_RATE_STEP_HZ = 0.5
 # How far back (in clean baro samples) the baro offset scale looks for
@@ -986,7 +989,7 @@ class HypothesisLogic:
         verdicts, aux = self._verdicts(t)
         live = live_hypotheses(self.excluded)
         j = judge(verdicts, live) if self.f.isolation_2of3 else self._paper_judge(verdicts, live)
-        j = self.judgement = self._restart_held(t, j, aux)
+        j = self.judgement = self._restart_held(t, self._slow_blame(j), aux)
         # isolation must hold persist_s before it excludes
         if j.situation == "isolated":
             if self.isolated_src != j.sources:
@@ -1050,6 +1053,20 @@ class HypothesisLogic:
             return v
         return dataclasses.replace(v, level="suspect",
                                    text=f"{v.text}; the IMU at {hz:.1f} Hz is too sparse to judge it")
+
+    def _slow_blame(self, j: Judgement) -> Judgement:
+        """An isolation of the baro while its stream runs below
+        ``min_baro_rate_hz`` (its own rate, which follows a drop within a few
+        samples; the core's rate check averages over seconds) is held as
+        ambiguous: out of the output, in caution, never in alarm. Samples that
+        sparse leave the baro+INS channel on the INS between them, so its level
+        tests cannot tell a baro fault from its gaps, and a slow input never
+        makes a sensor faulty (the same rule as :meth:`_slow_ins`)."""
+        hz = self.rates["baro_ins"].hz
+        if j.situation != "isolated" or "baro" not in j.candidates or hz >= SLOW_RATE_FRAC * self.m.min_baro_rate_hz:
+            return j
+        return Judgement("ambiguous", j.candidates, j.sources,
+                         f"cannot isolate: {j.reason}; the baro at {hz:.1f} Hz is too sparse to judge it")
 
     def _fuse(self, j: Judgement, avail) -> tuple[float, float, tuple]:
         """The fused height of the channels the evidence clears (NaN: none)."""
