@@ -265,8 +265,10 @@ class MonitorConfig(_Section):
     # below min_imu_rate_hz is too sparse to integrate between baro samples (its
     # snapshots miss the motion), a baro below min_baro_rate_hz too slow to show
     # a step in time. Below either, monitoring is degraded (unavailable); below
-    # the IMU's, the INS is no witness either: its tests may put the baro in
-    # caution, never in alarm (slow inputs never make a sensor faulty).
+    # the IMU's, the INS is no witness either: its tests say nothing (no
+    # caution, no alarm, no clearing); below the baro's, a baro the tests
+    # isolate is held out of the output in caution, not alarmed (slow inputs
+    # never make a sensor faulty).
     min_imu_rate_hz: float = Field(10.0, gt=0)
     min_baro_rate_hz: float = Field(5.0, gt=0)
     features: AdaptiveFeatures = AdaptiveFeatures()

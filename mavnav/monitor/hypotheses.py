@@ -1044,15 +1044,13 @@ class HypothesisLogic:
         return verdicts, aux
 
     def _slow_ins(self, v: Optional[Verdict]) -> Optional[Verdict]:
-        """An INS test's failure while the IMU runs below ``min_imu_rate_hz``
-        (the core's rate check says so) is a suspect: snapshots that sparse miss
-        the motion between them, so the INS cannot tell a baro or GNSS fault from
-        its own gaps, and a slow input never makes a sensor faulty."""
-        hz = self.slow_imu_hz
-        if v is None or hz is None or v.level != "fail":
-            return v
-        return dataclasses.replace(v, level="suspect",
-                                   text=f"{v.text}; the IMU at {hz:.1f} Hz is too sparse to judge it")
+        """An INS test while the IMU runs below ``min_imu_rate_hz`` (the core's
+        rate check says so) is no evidence: snapshots that sparse miss the
+        motion between them, so the INS can neither tell a baro or GNSS fault
+        from its own gaps nor vouch for anything, and a slow input never makes
+        a sensor faulty or suspect (the input source says monitoring is
+        degraded)."""
+        return v if self.slow_imu_hz is None else None
 
     def _slow_blame(self, j: Judgement) -> Judgement:
         """An isolation of the baro while its stream runs below
