@@ -298,6 +298,39 @@ def test_a_baro_isolated_while_its_stream_is_sparse_is_held_not_alarmed():
     assert logic._slow_blame(gnss_fault) is gnss_fault
 
 
+def test_an_ins_isolated_while_the_baro_is_already_out_freezes_the_aux_tests():
+    """The baro+INS source out for its baro, then the INS isolated too (an
+    accelerometer bias): from then on the aux channels' sequential tests sum
+    the INS's doing, so they restart and stay frozen (an accelerometer bias on
+    a real flight whose baro was already out had been pinned on the GNSS when
+    it ended). An isolation not on the INS leaves them running."""
+    from mavnav.bank import ChannelBank
+    from mavnav.channel import Model
+    from mavnav.config import config_from_dict
+    from mavnav.monitor.hypotheses import HypothesisLogic
+    from mavnav.monitor.table import Judgement
+
+    cfg = config_from_dict({})
+    logic = HypothesisLogic(cfg, ChannelBank(Model.from_config(cfg)))
+    logic.start(0, 0)
+    logic.excluded.add("baro_ins")  # out for its baro
+    assert not logic.ins_excluded
+    for z in (3.0,) * 6:
+        logic.cusum["gnss"].push(z)
+    summed = logic.cusum["gnss"].stat
+    assert summed > 0.0
+    t = 10_000_000
+    logic.isolated_since = t - 1_000_000
+    baro_again = Judgement("isolated", frozenset((B,)), frozenset(("baro_ins",)), "baro")
+    logic._source_state("baro_ins", t, baro_again)
+    assert not logic.ins_excluded and logic.cusum["gnss"].stat == summed
+    ins = Judgement("isolated", frozenset((I,)), frozenset(("baro_ins",)), "INS velocity changed")
+    logic._source_state("baro_ins", t, ins)
+    assert logic.ins_excluded and logic.cusum["gnss"].stat == 0.0
+    logic._sequential("gnss", t, 3.0, False)  # frozen while the INS is out
+    assert logic.cusum["gnss"].stat == 0.0
+
+
 SKEW = SHARED / "tlogs" / "other" / "copter_sitl_speedup_clock_skew.tlog"
 
 

@@ -1132,6 +1132,15 @@ class HypothesisLogic:
     def _source_state(self, name: str, t: int, j: Judgement):
         tr = self.trackers[name]
         if name in self.excluded:
+            if (name == "baro_ins" and not self.ins_excluded and j.situation == "isolated" and "ins" in j.candidates
+                    and t - (self.isolated_since or t) >= self.persist_us):
+                # out for its baro, now isolated for its INS too: what the aux
+                # channels' sequential tests sum from here is the INS's doing (an
+                # accelerometer bias on a flight whose baro was already out had
+                # been pinned on the GNSS when it ended)
+                self.ins_excluded = True
+                for _, aux_name in AUX:
+                    self.cusum[aux_name].clear()
             return self._maybe_readmit(name, t)
         if name == "baro_ins":
             if t - self.last_baro_us > self.stale_baro_us:
