@@ -331,6 +331,37 @@ def test_an_ins_isolated_while_the_baro_is_already_out_freezes_the_aux_tests():
     assert logic.cusum["gnss"].stat == 0.0
 
 
+def test_a_window_test_is_suspect_on_two_readings_in_a_row_not_one():
+    """Consecutive windows share all but their end samples: one reading past
+    the suspect level (or even past the threshold) is one noisy sample and
+    raises nothing; two in a row are a suspect; a failure needs two past the
+    threshold held persist_s."""
+    from mavnav.bank import ChannelBank
+    from mavnav.channel import Model
+    from mavnav.config import config_from_dict
+    from mavnav.monitor.doppler import Exceedance
+    from mavnav.monitor.hypotheses import HypothesisLogic
+
+    cfg = config_from_dict({})
+    logic = HypothesisLogic(cfg, ChannelBank(Model.from_config(cfg)))
+    logic.start(0, 0)
+    thr, near, over, low = 2.0, 0.9 * 2.0, 2.5, 0.5
+    assert cfg.monitor.suspect_frac * thr < near < thr
+    ex = Exceedance()
+
+    def reading(t_us, stat):
+        ex.update(t_us, stat > thr, stat > cfg.monitor.suspect_frac * thr)
+        return logic._graded("baro/Doppler", stat, thr, ex, t_us, frozenset((B, G)), "baro moved").level
+
+    assert reading(0, over) == "pass"  # one sample past the threshold
+    assert reading(200_000, low) == "pass"
+    assert reading(400_000, near) == "pass"  # one past the suspect level
+    assert reading(600_000, near) == "suspect"  # two in a row
+    assert reading(800_000, over) == "suspect"  # past the threshold, not yet held
+    assert reading(1_000_000, over) == "fail"  # two past it, held persist_s (0.2 s)
+    assert reading(1_200_000, low) == "pass"
+
+
 SKEW = SHARED / "tlogs" / "other" / "copter_sitl_speedup_clock_skew.tlog"
 
 

@@ -176,24 +176,27 @@ class InsDopplerCheck:
 class Exceedance:
     """Consecutive samples of a statistic past its threshold, and since when:
     a test fails on two in a row held ``persist_us`` (one outlier is the
-    gate's business)."""
+    gate's business); and consecutive samples past its suspect level (or its
+    threshold): a test is suspect on two in a row, not on one."""
 
-    __slots__ = ("count", "since_us")
+    __slots__ = ("count", "since_us", "near")
 
     def __init__(self) -> None:
         self.count = 0
         self.since_us: Optional[int] = None
+        self.near = 0
 
-    def update(self, t_us: int, over: bool) -> None:
+    def update(self, t_us: int, over: bool, near: bool = False) -> None:
+        self.near = self.near + 1 if over or near else 0
         if over:
             self.count += 1
             if self.since_us is None:
                 self.since_us = t_us
         else:
-            self.reset()
+            self.count, self.since_us = 0, None
 
     def reset(self) -> None:
-        self.count, self.since_us = 0, None
+        self.count, self.since_us, self.near = 0, None, 0
 
     def persistent(self, t_us: int, persist_us: int) -> bool:
         return self.count >= 2 and self.since_us is not None and t_us - self.since_us >= persist_us

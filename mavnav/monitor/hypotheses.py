@@ -421,7 +421,7 @@ class HypothesisLogic:
             ex.reset()
             return
         thr = self._window_thr(check, key)
-        ex.update(t_meas, abs(e) > thr)
+        ex.update(t_meas, abs(e) > thr, abs(e) > self.m.suspect_frac * thr)
         if abs(e) <= self.m.suspect_frac * thr:
             self.scale[key].push(t_meas, e / check.error_m(check.last_disp_m))
 
@@ -454,7 +454,7 @@ class HypothesisLogic:
             return
         sigma = self._drift_sigma()
         thr = self.k_cmp * sigma * self.scale["drift"].factor
-        self.drift_ex.update(t_meas, abs(slope) > thr)
+        self.drift_ex.update(t_meas, abs(slope) > thr, abs(slope) > self.m.suspect_frac * thr)
         if abs(slope) <= self.m.suspect_frac * thr:
             self.scale["drift"].push(t_meas, slope / sigma)
 
@@ -497,14 +497,14 @@ class HypothesisLogic:
                 pass_scale_m: float = 0.0) -> Verdict:
         """A windowed test's verdict from its statistic: fail past the threshold
         on two samples in a row held persist_s (one outlier is the gate's
-        business), suspect past suspect_frac of it, else pass, ruling out
-        ``clears`` below clear_frac of it."""
-        if stat > thr:
-            if ex.persistent(t, self.persist_us):
-                return Verdict(test, "fail", implicates, stat=stat, threshold=thr, text=txt,
-                               scale_m=stat if fail_scale_m is None else fail_scale_m, sizes=sizes)
-            return Verdict(test, "suspect", implicates, stat=stat, threshold=thr, text=txt)
-        if stat > self.m.suspect_frac * thr:
+        business), suspect past suspect_frac of it on two samples in a row
+        (consecutive windows share all but their end samples, so one reading
+        past it is one noisy sample), else pass, ruling out ``clears`` below
+        clear_frac of it."""
+        if stat > thr and ex.persistent(t, self.persist_us):
+            return Verdict(test, "fail", implicates, stat=stat, threshold=thr, text=txt,
+                           scale_m=stat if fail_scale_m is None else fail_scale_m, sizes=sizes)
+        if stat > self.m.suspect_frac * thr and ex.near >= 2:
             return Verdict(test, "suspect", implicates, stat=stat, threshold=thr, text=txt)
         clear = clears if stat < self.m.clear_frac * thr else frozenset()
         return Verdict(test, "pass", implicates, clear, stat, thr, scale_m=pass_scale_m)
@@ -535,7 +535,7 @@ class HypothesisLogic:
             self.insdop_ex.reset()
             return
         thr = self._ins_doppler_thr()
-        self.insdop_ex.update(pend[0], abs(e) > thr)
+        self.insdop_ex.update(pend[0], abs(e) > thr, abs(e) > self.m.suspect_frac * thr)
         if abs(e) <= self.m.suspect_frac * thr:
             self.scale["ins_doppler"].push(pend[0], e / self._ins_doppler_sigma())
 
