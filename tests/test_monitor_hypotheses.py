@@ -335,7 +335,8 @@ def test_a_window_test_is_suspect_on_two_readings_in_a_row_not_one():
     """Consecutive windows share all but their end samples: one reading past
     the suspect level (or even past the threshold) is one noisy sample and
     raises nothing; two in a row are a suspect; a failure needs two past the
-    threshold held persist_s."""
+    threshold held persist_s. (The Doppler, INS/Doppler, baro/Doppler, GNSS
+    drift and baro/INS tests all grade through ``_graded``.)"""
     from mavnav.bank import ChannelBank
     from mavnav.channel import Model
     from mavnav.config import config_from_dict

@@ -163,7 +163,7 @@ class HypothesisLogic:
         self.sensor_var_floor = [0.0, 0.0, 0.0]
         self.bank.baro_on[:] = True
         self.ins = InsBaroCheck(m.ins_window_s)
-        self.ins_exceed_since: Optional[int] = None
+        self.ins_ex = Exceedance()  # baro/INS readings past its threshold and its suspect level
         self.raw_check = RawAuxCheck(window_s=m.raw_check_window_s, k=self.k_cmp)
         self.refused: deque = deque()  # (t_us, kind, value_m, min_m, max_m)
         self.range_valid: deque = deque()
@@ -724,21 +724,14 @@ class HypothesisLogic:
             sc.push(t, e / sigma)  # frozen while the test leans towards a fault
         txt = (f"baro moved {e:+.2f} m against the INS over {D:.1f} s (threshold {thr:.2f} m)"
                if stat > m.suspect_frac * thr or stat > thr else "")  # a pass carries no text
-        if stat > thr:
-            if self.ins_exceed_since is None:
-                self.ins_exceed_since = t
-            if t - self.ins_exceed_since >= self.persist_us:
-                return Verdict("baro/INS", "fail", implicates, stat=stat, threshold=thr, text=txt, scale_m=stat)
-            return Verdict("baro/INS", "suspect", implicates, stat=stat, threshold=thr, text=txt)
-        self.ins_exceed_since = None
-        if stat > m.suspect_frac * thr:
-            return Verdict("baro/INS", "suspect", implicates, stat=stat, threshold=thr, text=txt)
+        # graded as the window tests are (its windows overlap as theirs do)
+        self.ins_ex.update(t, stat > thr, stat > m.suspect_frac * thr)
         # a second difference is blind to a ramp: a pass rules out the INS, never the
         # baro; and with the baro excluded it rules out nothing (its reference is out,
         # and the channel's accelerometer estimate has followed whichever was wrong)
-        clear = (frozenset(("ins",)) if stat < m.clear_frac * thr and rej == 0 and "baro_ins" not in self.excluded
-                 else frozenset())
-        return Verdict("baro/INS", "pass", implicates, clear, stat, thr, scale_m=thr)  # V_s follows a slow error in part
+        clears = frozenset(("ins",)) if rej == 0 and "baro_ins" not in self.excluded else frozenset()
+        return self._graded("baro/INS", stat, thr, self.ins_ex, t, implicates, txt, clears=clears,
+                            pass_scale_m=thr)  # V_s follows a slow error in part
 
     def _jump_verdict(self, t: int, implicates: frozenset) -> Optional[Verdict]:
         """A baro step that stayed (fail) or a jump being watched (a pass that clears nothing), if any."""
