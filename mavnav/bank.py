@@ -35,7 +35,6 @@ from .jit import njit
 
 N_CH = len(CHANNELS)
 GNSS, RNG, BARO = 0, 1, 2
-ROW_BARO, ROW_AUX = 0, 1
 # the aux row's entry at b_g per channel (the GNSS row observes the GNSS error)
 AUX_GB_ROW = tuple(float(AUX_GB[k]) for k in CHANNELS)
 assert N_STATES == 5 and GB == 4  # the kernels below spell out Phi and Bxx for this layout
