@@ -84,10 +84,13 @@ import yaml
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-sys.path.insert(0, str(HERE))
-
-import scoremetrics as sm  # noqa: E402
-from autopilot_baseline import BaselineConfig, run_baseline  # noqa: E402
+if __package__:  # imported as bench.integrity (the tests)
+    from . import scoremetrics as sm
+    from .autopilot_baseline import BaselineConfig, run_baseline
+else:  # run as a script
+    sys.path.insert(0, str(HERE))
+    import scoremetrics as sm
+    from autopilot_baseline import BaselineConfig, run_baseline
 
 from mavnav.config import SensorsConfig, config_from_dict  # noqa: E402
 from mavnav.ingest import TlogSource  # noqa: E402

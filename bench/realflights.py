@@ -46,11 +46,16 @@ import numpy as np
 import yaml
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-sys.path.insert(0, str(HERE.parent))
+if not __package__:  # run as a script, or imported as realflights by another script: siblings by bare name
+    sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent))  # the repository's mavnav, before the siblings import it
 
-from autopilot_baseline import BaselineConfig, run_baseline  # noqa: E402
-from scoremetrics import alarm_onsets, detect, tta_stats  # noqa: E402
+if __package__:  # imported as bench.realflights (the tests)
+    from .autopilot_baseline import BaselineConfig, run_baseline
+    from .scoremetrics import alarm_onsets, detect, tta_stats
+else:
+    from autopilot_baseline import BaselineConfig, run_baseline
+    from scoremetrics import alarm_onsets, detect, tta_stats
 
 from mavnav.audit import AuditSink, audit_file  # noqa: E402
 from mavnav.config import config_from_dict  # noqa: E402

@@ -35,7 +35,6 @@ from .jit import njit
 
 N_CH = len(CHANNELS)
 GNSS, RNG, BARO = 0, 1, 2
-ROW_BARO, ROW_AUX = 0, 1
 # the aux row's entry at b_g per channel (the GNSS row observes the GNSS error)
 AUX_GB_ROW = tuple(float(AUX_GB[k]) for k in CHANNELS)
 assert N_STATES == 5 and GB == 4  # the kernels below spell out Phi and Bxx for this layout
@@ -227,7 +226,7 @@ def cross_kernel(Pc, pairs, T, g0, g1, q_dh, q_da, phi_g, q_g, gamma_u2, dof, K,
 
     ``R_ab = gamma_u^2`` between two baro rows, else 0. (The GNSS error
     ``b_g`` is one truth shared by every channel, so its process noise is in
-    the common ``Bxx`` too.)
+    the common ``Bxx`` too.) :func:`cross_reference` is the same in matrix form.
     """
     n = Pc.shape[1]
     hT2 = 0.5 * T * T
@@ -301,6 +300,37 @@ def cross_kernel(Pc, pairs, T, g0, g1, q_dh, q_da, phi_g, q_g, gamma_u2, dof, K,
         for i in range(n):
             for j in range(n):
                 Pc[p, i, j] = out[i, j]
+
+
+def cross_reference(Pc: np.ndarray, pairs, Phi: np.ndarray, Bxx: np.ndarray, gamma_u2: float,
+                    dof, K: np.ndarray, Fy: np.ndarray, Hr: np.ndarray, rb: np.ndarray) -> np.ndarray:
+    """The readable reference of :func:`cross_kernel`: the propagated
+    cross-covariances, in matrix form (``Pc`` is left as it is).
+
+    ``Phi`` and ``Bxx`` are the whole state's (:func:`mavnav.channel.state_transition`,
+    :func:`mavnav.channel.state_process_noise`); ``dof``, ``K``, ``Fy``, ``Hr``
+    and ``rb`` are what :func:`bank_kernel` left for the step (per channel
+    ``c``, its first ``dof[c]`` rows: gain columns, ``Phi_y`` rows, observation
+    rows, whether the row is the baro's). Per pair ``(a, b)``:
+
+        Pc+ = A_a Pc A_b^T + Bxx - K_a H_a Bxx - Bxx H_b^T K_b^T
+              + K_a (H_a Bxx H_b^T + R_ab) K_b^T,   A = Phi - K Phi_y,
+
+    ``R_ab[r, s] = gamma_u^2`` where rows ``r`` of ``a`` and ``s`` of ``b`` are
+    both baro rows (the one differenced baro noise they share), else 0.
+    ``tests/test_bank.py`` holds the kernel to it.
+    """
+    out = np.empty_like(Pc)
+    for p, (a, b) in enumerate(pairs):
+        na, nb = int(dof[a]), int(dof[b])
+        Ka, Kb = K[a][:, :na], K[b][:, :nb]
+        Ha, Hb = Hr[a][:na], Hr[b][:nb]
+        Aa = Phi - Ka @ Fy[a][:na]
+        Ab = Phi - Kb @ Fy[b][:nb]
+        R_ab = gamma_u2 * np.outer(rb[a][:na], rb[b][:nb]).astype(float)
+        out[p] = (Aa @ Pc[p] @ Ab.T + Bxx - Ka @ Ha @ Bxx - Bxx @ Hb.T @ Kb.T
+                  + Ka @ (Ha @ Bxx @ Hb.T + R_ab) @ Kb.T)
+    return out
 
 
 @dataclass(frozen=True, slots=True)

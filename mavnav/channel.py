@@ -63,7 +63,6 @@ from .sensors import CHANNELS, Sensor  # noqa: F401 (CHANNELS: re-exported)
 H, VZ, DH, DA, GB = 0, 1, 2, 3, 4
 N_STATES = 5
 N_PAPER = 4  # the paper's states [H, Vz, dH, da]
-STATE_NAMES = ("height_ref_m", "vel_up_mps", "baro_bias_m", "acc_bias_mps2", "gnss_error_m")
 
 ChannelKind = Sensor  # one of CHANNELS: gnss, rangefinder, baro
 _AUX_ROW = {Sensor.GNSS: Sensor.GNSS.short, Sensor.RANGEFINDER: Sensor.RANGEFINDER.short, Sensor.BARO: None}  # gnss, rng

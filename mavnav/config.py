@@ -276,14 +276,8 @@ class MonitorConfig(_Section):
     false_alarm_prob: float = Field(1e-5, gt=0, lt=0.5)
     # Probability of rejecting a good GNSS/rangefinder sample (chi-square, 1 dof).
     gate_prob: float = Field(1e-4, gt=0, lt=0.5)
-    # Sliding-window test of normalised innovations: length and two-sided level.
+    # The sliding window the rejected samples are counted in (caution_rejections, alarm_rejections).
     window_s: float = Field(5.0, gt=0)
-    window_prob: float = Field(1e-4, gt=0, lt=0.5)
-    window_min_samples: int = Field(10, ge=2)
-    # Also flag a source whose innovations are too *small* (a frozen sensor, or
-    # a noise model far too pessimistic). Off by default: receivers report
-    # conservative accuracies, and stuck sensors are caught at ingestion.
-    window_low_test: bool = False
     # A single baro sample this improbable (chi-square, 1 dof) is a baro jump:
     # an alarm at once, so the level is far stricter than gate_prob.
     baro_jump_prob: float = Field(1e-8, gt=0, lt=0.5)

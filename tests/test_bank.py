@@ -1,16 +1,19 @@
-"""The compiled three-channel bank equals the reference channel filter, and its
-covariances stay symmetric positive definite; the same input gives the same output."""
+"""The compiled three-channel bank equals the reference channel filter, its
+cross-covariance kernel equals its matrix-form reference, and its covariances
+stay symmetric positive definite; the same input gives the same output."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from mavnav.bank import CHANNELS, ChannelBank
-from mavnav.channel import GB, N_PAPER, N_STATES, AuxMeasurement, EpochInputs, Model, initial_state, step
+from mavnav.bank import CHANNELS, PAIRS, ChannelBank, cross_kernel, cross_reference
+from mavnav.channel import (GB, N_PAPER, N_STATES, AuxMeasurement, EpochInputs, Model, baro_gauss_markov,
+                            gnss_gauss_markov, initial_state, state_process_noise, state_transition, step)
 from mavnav.config import config_from_dict
 
 
@@ -202,3 +205,90 @@ def test_cross_covariances_match_monte_carlo(gm_sigma_m, gm_tau_s):
     # without the cross term, the GNSS/rangefinder difference looks far calmer than it is
     if gm_sigma_m == 0:
         assert np.mean(z_without[0]) < 0.75
+
+
+# ---------------------------------------------------------------- cross_kernel against its reference
+
+
+def _kernel_scalars(model: Model, T: float, dv_var_m2ps2: float, baro_white_var_m2: float):
+    """What ChannelBank.step hands cross_kernel, from the model (the test's own
+    spelling of gamma_u^2: mavnav.channel.measurement_rows's baro row noise)."""
+    g0, g1 = ChannelBank(model)._g(T, dv_var_m2ps2)
+    phi_g, q_g = gnss_gauss_markov(T, model)
+    phi_u, gamma_u = baro_gauss_markov(T, model)
+    return dict(T=T, g0=g0, g1=g1, q_dh=model.baro_bias_rw_m_per_sqrt_s**2 * T,
+                q_da=model.acc_bias_rw_mps2_per_sqrt_s**2 * T, phi_g=phi_g, q_g=q_g,
+                gamma_u2=gamma_u * gamma_u + (1.0 + phi_u * phi_u) * baro_white_var_m2)
+
+
+def _assert_cross_equal(got, want):
+    np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12 * max(np.abs(want).max(), 1e-300))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4, 5, 6, 7])
+def test_cross_kernel_equals_reference_on_random_inputs(seed):
+    """Random SPD joint covariances (their off-diagonal blocks are the pairs'
+    cross-covariances), random gains and rows of 0, 1 or 2 rows per channel,
+    a random model and step: the compiled kernel is the matrix formula, with
+    Phi and Bxx from the channel module (not the kernel's closed forms)."""
+    rng = np.random.default_rng(seed)
+    n = N_STATES
+    model = Model.from_config(cfg_gm(float(rng.choice([0.0, 3.0])), float(rng.uniform(5.0, 500.0))))
+    model = dataclasses.replace(model, sigma_a_mps2=float(rng.uniform(0.05, 2.0)),
+                                alpha_a_per_s=float(rng.uniform(0.1, 5.0)),
+                                sigma_bb_m=float(rng.uniform(0.1, 5.0)), gamma_bb_per_s=float(rng.uniform(0.01, 1.0)),
+                                baro_bias_rw_m_per_sqrt_s=float(rng.uniform(0.0, 0.05)),
+                                acc_bias_rw_mps2_per_sqrt_s=float(rng.uniform(0.0, 0.01)))
+    T = float(rng.uniform(0.005, 0.2))
+    dv_var = float(rng.choice([0.0, rng.uniform(0.0, 0.05)]))
+    sc = _kernel_scalars(model, T, dv_var, float(rng.uniform(0.0, 0.2)))
+    M = rng.standard_normal((3 * n, 3 * n))
+    joint = M @ M.T + 1e-3 * np.eye(3 * n)  # SPD: the three channels' errors together
+    Pc = np.array([joint[a * n:(a + 1) * n, b * n:(b + 1) * n] for a, b in PAIRS])
+    dof = rng.integers(0, 3, size=len(CHANNELS)).astype(np.int64)
+    K = rng.standard_normal((len(CHANNELS), n, 2))
+    Fy = rng.standard_normal((len(CHANNELS), 2, n))
+    Hr = rng.standard_normal((len(CHANNELS), 2, n))
+    rb = rng.random((len(CHANNELS), 2)) < 0.7
+    pairs = np.array(PAIRS, dtype=np.int64)
+    Phi, Bxx = state_transition(T, model), state_process_noise(T, model, dv_var)
+    Pc0 = Pc.copy()
+    want = cross_reference(Pc, pairs, Phi, Bxx, sc["gamma_u2"], dof, K, Fy, Hr, rb)
+    assert np.array_equal(Pc, Pc0)  # the reference leaves its input alone
+    got = Pc.copy()
+    cross_kernel(got, pairs, sc["T"], sc["g0"], sc["g1"], sc["q_dh"], sc["q_da"], sc["phi_g"], sc["q_g"],
+                 sc["gamma_u2"], dof, K, Fy, Hr, rb)
+    _assert_cross_equal(got, want)
+    assert not np.allclose(got, Pc0)
+    # the comparison is sharp: the shared baro noise shows where two baro rows meet
+    shared = any(rb[a, r] and rb[b, s] for a, b in PAIRS for r in range(dof[a]) for s in range(dof[b]))
+    other = cross_reference(Pc, pairs, Phi, Bxx, 2.0 * sc["gamma_u2"], dof, K, Fy, Hr, rb)
+    assert np.allclose(other, want, rtol=1e-12, atol=0) != shared
+
+
+@pytest.mark.parametrize("seed", [3, 11, 29])
+@GM
+def test_cross_kernel_equals_reference_over_a_run(seed, gm_sigma_m):
+    """Step by step over a long irregular run (measured input noise, baro
+    restarts, the baro switched off and on per channel, feedback between the
+    channels), the bank's cross-covariances are the reference's propagation
+    of the previous ones with the step's gains and rows."""
+    model = Model.from_config(cfg_gm(gm_sigma_m))
+    bank = ChannelBank(model)
+    bank.start(0, 0.5)
+    rng = np.random.default_rng(seed)
+    shared_baro = 0
+    for k, ep in enumerate(random_epochs(seed, 1500, measured=True)):
+        if k % 50 == 0:
+            bank.baro_on[:] = rng.random(len(CHANNELS)) < 0.8
+        if k % 137 == 136:
+            bank.feedback(2, [0, 1], np.array([0.5, 0.5]), inflation=4.0)
+        Pc0 = bank.Pc.copy()
+        bank.step(ep)
+        sc = _kernel_scalars(model, ep.dt_s, ep.dv_var_m2ps2, ep.baro_white_var_m2)
+        want = cross_reference(Pc0, PAIRS, state_transition(ep.dt_s, model),
+                               state_process_noise(ep.dt_s, model, ep.dv_var_m2ps2), sc["gamma_u2"],
+                               bank._dof, bank._K, bank._Fy, bank._Hr, bank._rb)
+        _assert_cross_equal(bank.Pc, want)
+        shared_baro += int(bank._rb[:, 0].sum() >= 2)
+    assert shared_baro > 500  # most steps exercised the shared baro term

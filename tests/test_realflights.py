@@ -10,20 +10,14 @@ flagged invalid.
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import pytest
 
-from tests.support.paths import BENCH  # noqa: E402
-
-sys.path.insert(0, str(BENCH))
-
-import realflights as rf  # noqa: E402
-
-from mavnav.sim import scenario_from_dict, simulate  # noqa: E402
-from mavnav.sim.faults import parse_fault  # noqa: E402
-from tests.support.paths import BENCH, SHARED_FLIGHTLOGS
+from bench import realflights as rf
+from mavnav.sim import scenario_from_dict, simulate
+from mavnav.sim.faults import parse_fault
+from tests.support.paths import SHARED_FLIGHTLOGS
 
 pytestmark = [pytest.mark.realdata, pytest.mark.slow]
 

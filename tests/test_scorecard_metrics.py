@@ -3,24 +3,18 @@
 from __future__ import annotations
 
 import math
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from tests.support.paths import BENCH  # noqa: E402
-
-sys.path.insert(0, str(BENCH))
-
-import scoremetrics as sm  # noqa: E402
-from autopilot_baseline import BaselineConfig, run_baseline  # noqa: E402
-
-from mavnav.config import config_from_dict  # noqa: E402
-from mavnav.ingest import TlogSource  # noqa: E402
-from mavnav.report import AlarmEvent  # noqa: E402
-from mavnav.sim import scenario_from_dict, simulate  # noqa: E402
+from bench import scoremetrics as sm
+from bench.autopilot_baseline import BaselineConfig, run_baseline
+from mavnav.config import config_from_dict
+from mavnav.ingest import TlogSource
+from mavnav.report import AlarmEvent
+from mavnav.sim import scenario_from_dict, simulate
 
 
 def ev(t_s, source, state, previous):
@@ -262,7 +256,7 @@ def test_score_run_holds_an_epoch_at_most_max_hold_s():
 
 def test_integrity_families_build_valid_runs():
     """Every family's run is a valid scenario (or a SITL injection) whose fault lies in its window."""
-    import integrity
+    from bench import integrity
 
     assert {"descent_above_max", "takeoff_landing", "terrain_roof", "rng_frozen_descent", "accel_bias",
             "gnss_wander", "slow_telemetry", "inflight_start", "gnss_step3", "baro_ramp", "rng_stuck"} <= set(
@@ -287,7 +281,7 @@ def test_integrity_families_build_valid_runs():
 
 
 def test_integrity_job_scores_every_contender():
-    import integrity
+    from bench import integrity
 
     r = integrity.job({"family": "slow_telemetry", "seed": 3, "contenders": ["adaptive", "baseline"],
                        "baseline_fail_s": 5.0})

@@ -3,16 +3,11 @@ the flight's own alarm, not the fault's."""
 
 from __future__ import annotations
 
-import sys
 from types import SimpleNamespace as Ev
 
 import pytest
 
-from tests.support.paths import BENCH
-
-sys.path.insert(0, str(BENCH))
-
-import realflights as rf  # noqa: E402
+from bench import realflights as rf
 
 pytestmark = [pytest.mark.unit]
 

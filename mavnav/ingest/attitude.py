@@ -26,7 +26,7 @@ class AttitudeInterpolator:
         self.max_age_us = int(max_age_s * 1e6)
         self._t: List[int] = []
         self._q: List[Quat] = []
-        self.pending: Deque[tuple] = deque()  # (t_us, item)
+        self.pending: Deque = deque()  # items waiting for their attitude, in arrival order; each has .t_us (ImuItem)
         self.nearest = 0
 
     def reset(self) -> None:
@@ -49,16 +49,17 @@ class AttitudeInterpolator:
         return None
 
     def resolve(self, now_us: Optional[int], flush: bool = False) -> List[Tuple[object, Optional[Quat], bool]]:
-        """Pop resolvable pending items: ``(item, quat or None, used_nearest)``."""
+        """Pop resolvable pending items: ``(item, quat or None, used_nearest)``, in arrival order."""
         pend = self.pending
         ts = self._t
         if pend and not flush and ts and now_us is not None:  # inline, the hot path
-            t = pend[0][0]
+            t = pend[0].t_us
             if t > ts[-1] and now_us < t + self.wait_us:
                 return []  # fast path: still waiting for the next attitude
         out = []
         while pend:
-            t, item = pend[0]
+            item = pend[0]
+            t = item.t_us
             q = self._bracketed(t)
             if q is not None:
                 pend.popleft()

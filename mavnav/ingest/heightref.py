@@ -28,7 +28,7 @@ from ..atmosphere import height_from_pressure_m, pressure_at_height_pa
 from ..config import IngestConfig
 from ..samples import BaroHeight, GnssHeight, Notice, ReferenceMoved, ReferenceSet
 from .clock import VehicleClock
-from .references import ReferenceResolver
+from .references import AnchoredValue, ReferenceResolver
 
 REL_ALT_MAX_AGE_US = 1_000_000  # a baro sample pairs with the autopilot's height this close in time
 ANCHOR_WINDOW_US = 1_000_000  # baro samples averaged for a reference from the autopilot (capped by startup_window_s)
@@ -224,12 +224,12 @@ class HeightReferences:
             if not complete:
                 return None
             self._baro_tied = rel_max <= self.cfg.baro_reference.at_datum_max_m
-            return sum(vals) / len(vals), origin
+            return AnchoredValue(sum(vals) / len(vals), origin)
         if origin == "home" and self._home_pos is not None:
             # HOME_POSITION and no height above it: home is where the vehicle was when it was set
             v = self._baro_at_home(held, final)
             if v is not None:
-                return v, origin
+                return AnchoredValue(v, origin)
         return None
 
     def _baro_at_home(self, held, final) -> Optional[float]:
@@ -255,10 +255,10 @@ class HeightReferences:
             return None
         origin, alt_msl = a.origin, a.alt_msl_m
         if self.cfg.gnss_altitude == "msl":
-            return alt_msl, origin
+            return AnchoredValue(alt_msl, origin)
         if self.geoid_sep_m is None:
             return None
-        return alt_msl + self.geoid_sep_m, origin
+        return AnchoredValue(alt_msl + self.geoid_sep_m, origin)
 
     def _rel_at(self, t_us: int, boot: int, kind: str) -> Optional[float]:
         """The autopilot's height above its reference point at ``t_us`` (None: none within 1 s)."""
@@ -266,16 +266,18 @@ class HeightReferences:
             return None
         hist = self._rel_hist[kind]
         i = bisect.bisect_left(hist, (t_us,))
-        best = None
+        best: Optional[_RelHeight] = None  # the nearest within REL_ALT_MAX_AGE_US, and how far
+        best_d = 0
         for j in (i - 1, i):
             if 0 <= j < len(hist):
                 d = abs(hist[j].t_us - t_us)
-                if d <= REL_ALT_MAX_AGE_US and (best is None or d < best[0]):
-                    best = (d, hist[j])
+                if d <= REL_ALT_MAX_AGE_US and (best is None or d < best_d):
+                    best, best_d = hist[j], d
         if best is None:
             return None
-        tr, rel_m, vel_up = best[1]  # _RelHeight
-        return rel_m + vel_up * (t_us - tr) * 1e-6 if math.isfinite(vel_up) else rel_m
+        if not math.isfinite(best.vel_up_mps):
+            return best.height_m
+        return best.height_m + best.vel_up_mps * (t_us - best.t_us) * 1e-6
 
     def _note_rel(self, kind: str, t_us: int, rel_m: float, vel_up: float) -> None:
         if self.baro.value is not None or not math.isfinite(rel_m):

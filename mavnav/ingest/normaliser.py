@@ -570,7 +570,7 @@ class Normaliser:
         self.stats.imu_source = self.imu_sel.chosen
         if not self._admit(IMU_STREAM, item.t_us, item.recv_s, item.boot):
             return False
-        self.att.pending.append((item.t_us, item))
+        self.att.pending.append(item)
         self._resolve_attitude()
         return True
 
@@ -583,16 +583,16 @@ class Normaliser:
         if not flush and now_us is not None:
             ts = att._t  # att.resolve's own fast path, without the call: the head still waits
             if ts:
-                t = pend[0][0]
+                t = pend[0].t_us
                 if t > ts[-1] and now_us < t + att.wait_us:
                     return
-        for item, q, nearest in att.resolve(now_us, flush):
-            t_us, recv_s, boot, fb, name = item
+        for item, q, _nearest in att.resolve(now_us, flush):  # item: the ImuItem that waited
             if q is None:
-                self._reject(recv_s, "no_attitude", f"{name}: no attitude within {self.cfg.attitude_max_age_s} s", t_us, boot)
+                self._reject(item.recv_s, "no_attitude",
+                             f"{item.name}: no attitude within {self.cfg.attitude_max_age_s} s", item.t_us, item.boot)
                 continue
-            f_up = f_up_from_body(fb, down_row_from_quat(q))
-            self._yield(IMU_STREAM, SpecificForceUp(t_us, recv_s, boot, f_up, name))
+            f_up = f_up_from_body(item.fb, down_row_from_quat(q))
+            self._yield(IMU_STREAM, SpecificForceUp(item.t_us, item.recv_s, item.boot, f_up, item.name))
 
     # ------------------------------------------------------------------ barometer
 

@@ -28,17 +28,26 @@ pipeline reports heights above the new home (:mod:`mavnav.home_frame`).
 from __future__ import annotations
 
 from collections import deque
-from typing import Callable, Deque, List, Optional, Sequence, Tuple
+from typing import Callable, Deque, List, NamedTuple, Optional, Sequence, Tuple
 
 from ..config import ReferenceConfig
 
-# anchored(held items, final) -> (value, origin) once the autopilot's reference is known, else None
-Anchored = Callable[[Sequence[object], bool], Optional[Tuple[float, str]]]
+
+class AnchoredValue(NamedTuple):
+    """The reference taken from the autopilot's reference point, and its origin
+    (``home``, ``autopilot_home``, ``ekf_origin``)."""
+
+    value: float
+    origin: str
+
+
+# anchored(held items, final) -> the value and its origin once the autopilot's reference is known, else None
+Anchored = Callable[[Sequence[object], bool], Optional[AnchoredValue]]
 
 
 class ReferenceResolver:
     """``item_t(item) -> (t_us, boot)``; ``startup_value(items) -> float``;
-    ``anchored(held, final) -> (value, origin) | None``."""
+    ``anchored(held, final) -> AnchoredValue | None``."""
 
     def __init__(
         self,
@@ -113,7 +122,7 @@ class ReferenceResolver:
         if src == "home":
             got = self._anchored(list(self.held), final)
             if got is not None:
-                return self._release(got[0], got[1])
+                return self._release(got.value, got.origin)
             if not self.held:
                 return None, []
             if not final and self.held_span_us() < self.wait_us:
