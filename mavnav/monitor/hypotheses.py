@@ -474,7 +474,7 @@ class HypothesisLogic:
         thr = self.k_cmp * self._drift_sigma() * self.scale["drift"].factor
         e = d.last_slope_mps
         txt = (f"GNSS altitude drifted {e:+.2f} m/s against the baro over {d.last_span_s:.0f} s "
-               f"(threshold {thr:.2f} m/s)")
+               f"(threshold {thr:.2f} m/s)" if abs(e) > self.m.suspect_frac * thr else "")  # a pass has none
         return self._graded("GNSS/baro drift", abs(e), thr, self.drift_ex, t, frozenset(("gnss", "baro")), txt,
                             fail_scale_m=abs(e) * d.last_span_s, sizes={"gnss": 0.0})
 
@@ -489,7 +489,7 @@ class HypothesisLogic:
         thr = self._window_thr(d, "doppler")
         e = d.last_e_m
         txt = (f"GNSS altitude moved {e:+.2f} m against its own Doppler velocity over "
-               f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m)")
+               f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m)" if abs(e) > self.m.suspect_frac * thr else "")
         return self._graded("GNSS/Doppler", abs(e), thr, self.doppler_ex, t, frozenset(("gnss",)), txt)
 
     def _graded(self, test: str, stat: float, thr: float, ex, t: int, implicates: frozenset, txt: str,
@@ -521,7 +521,8 @@ class HypothesisLogic:
         thr = self._window_thr(d, "baro_doppler")
         e = d.last_e_m
         txt = (f"baro moved {e:+.2f} m against the GNSS Doppler velocity over "
-               f"{d.last_span_s:.0f} s (threshold {thr:.2f} m; vehicle moved {d.last_disp_m:+.1f} m)")
+               f"{d.last_span_s:.0f} s (threshold {thr:.2f} m; vehicle moved {d.last_disp_m:+.1f} m)"
+               if abs(e) > self.m.suspect_frac * thr else "")
         return self._graded("baro/Doppler", abs(e), thr, self.baro_doppler_ex, t, frozenset(("baro", "gnss")), txt)
 
     def _push_ins_doppler(self, ep: EpochInputs) -> None:
@@ -567,7 +568,7 @@ class HypothesisLogic:
         to_ins_m = 0.5 * D * D / W
         to_pos_m = 0.5 * W  # a GNSS velocity error e over the window: e W / 2 of position
         txt = (f"INS velocity changed {-e:+.2f} m/s against the GNSS Doppler over "
-               f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m/s)")
+               f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m/s)" if abs(e) > self.m.suspect_frac * thr else "")
         return self._graded("INS/Doppler", abs(e), thr, self.insdop_ex, t, frozenset(("ins", "gnss")), txt,
                             clears=frozenset(("ins",)), fail_scale_m=abs(e) * to_pos_m,
                             sizes={"ins": abs(e) * to_ins_m}, pass_scale_m=thr * to_ins_m)
