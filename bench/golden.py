@@ -1,6 +1,6 @@
-"""Golden outputs of ``mavnav audit`` over the real and SITL logs, and a byte
-comparison of two such sets: the safety net of a refactoring that must not
-change behaviour.
+"""Golden outputs of ``mavnav audit`` and of the MAVLink output of ``mavnav
+replay`` over the real and SITL logs, and a byte comparison of two such
+sets: the safety net of a refactoring that must not change behaviour.
 
     # write the outputs of the code on PYTHONPATH (or installed) into DIR
     python bench/golden.py run DIR [--more]
