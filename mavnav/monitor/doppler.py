@@ -32,13 +32,13 @@ from typing import Optional
 MIN_SPAN_FRAC = 0.8
 
 
-def _restart_on_gap(h: deque, t_us: int, max_gap_us: int) -> None:
+def restart_on_gap(h: deque, t_us: int, max_gap_us: int) -> None:
     """A sample not after the last one, or after a gap, starts the history again."""
     if h and (t_us <= h[-1][0] or t_us - h[-1][0] > max_gap_us):
         h.clear()
 
 
-def _window_first(h: deque, t_us: int, window_us: int, min_span_us: float):
+def window_first(h: deque, t_us: int, window_us: int, min_span_us: float):
     """Trim the history to the window ending at ``t_us``; its first entry, or
     None while it spans less than ``min_span_us``."""
     start = t_us - window_us
@@ -88,13 +88,13 @@ class DopplerCheck:
             self.clear()
             return None
         h = self.hist
-        _restart_on_gap(h, t_us, self.max_gap_us)
+        restart_on_gap(h, t_us, self.max_gap_us)
         integral = 0.0
         if h:
             t0, _, v0, i0 = h[-1]
             integral = i0 + 0.5 * (v0 + vel_up_mps) * (t_us - t0) * 1e-6
         h.append((t_us, height_m, vel_up_mps, integral))
-        first = _window_first(h, t_us, self.window_us, self.min_span_us)
+        first = window_first(h, t_us, self.window_us, self.min_span_us)
         if first is None:
             return None
         t_j, h_j, _, i_j = first
@@ -160,9 +160,9 @@ class InsDopplerCheck:
             self.clear()
             return None
         h = self.hist
-        _restart_on_gap(h, t_us, self.max_gap_us)
+        restart_on_gap(h, t_us, self.max_gap_us)
         h.append((t_us, vel_up_mps, self._vel, self._var))
-        first = _window_first(h, t_us, self.window_us, 0.8 * self.window_us)
+        first = window_first(h, t_us, self.window_us, 0.8 * self.window_us)
         if first is None:
             return None
         _, v_j, V_j, var_j = first

@@ -32,7 +32,7 @@ import statistics
 from collections import deque
 from typing import Optional
 
-from .doppler import MIN_SPAN_FRAC, _restart_on_gap, _window_first
+from .doppler import MIN_SPAN_FRAC, restart_on_gap, window_first
 
 # A fit needs this many samples (and the window spanned to MIN_SPAN_FRAC).
 MIN_SAMPLES = 5
@@ -70,9 +70,9 @@ class DriftCheck:
             self.clear()
             return None
         h = self.hist
-        _restart_on_gap(h, t_us, self.max_gap_us)
+        restart_on_gap(h, t_us, self.max_gap_us)
         h.append((t_us, d_m))
-        first = _window_first(h, t_us, self.window_us, self.min_span_us)
+        first = window_first(h, t_us, self.window_us, self.min_span_us)
         if first is None or len(h) < MIN_SAMPLES:
             return None
         ts = [(s[0] - t_us) * 1e-6 for s in h]
