@@ -159,7 +159,7 @@ def audit_file(path: str | Path, cfg: Config, sysid: Optional[int] = None,
         "inputs": {
             "rates_hz": rates,
             "required_hz": need,
-            "supports_time_to_alarm": {k: (rates[k] >= 0.9 * need[k]) for k in rates},
+            "supports_time_to_alarm": {k: (rates[k] >= cfg.monitor.rate_tolerance_frac * need[k]) for k in rates},
             "time_to_alarm_s": cfg.monitor.time_to_alarm_s,
         },
         "sink_failures": summary.sink_failures,

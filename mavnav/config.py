@@ -271,6 +271,10 @@ class MonitorConfig(_Section):
     # never make a sensor faulty).
     min_imu_rate_hz: float = Field(10.0, gt=0)
     min_baro_rate_hz: float = Field(5.0, gt=0)
+    # A stream counts as at a required rate down to this fraction of it (a
+    # nominal 10 Hz stream jitters): the rate check, the audit's verdict on the
+    # inputs and the slow-baro rule read the same number.
+    rate_tolerance_frac: float = Field(0.9, gt=0, le=1)
     features: AdaptiveFeatures = AdaptiveFeatures()
     # Probability of a false alarm of one channel-comparison test (two-sided normal).
     false_alarm_prob: float = Field(1e-5, gt=0, lt=0.5)

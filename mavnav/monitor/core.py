@@ -220,7 +220,7 @@ class Monitor:
                 r = meter.rate_hz(t_us)
                 if r <= 0.0:
                     continue  # absent inputs are the channels' business (unavailable)
-                if r < 0.9 * need[k]:  # 10 % tolerance: a nominal 10 Hz stream jitters
+                if r < m.rate_tolerance_frac * need[k]:
                     slow.append(f"{k} {r:.1f} Hz < {need[k]:.0f}")
                     if k == "imu":
                         slow_imu_hz = r

@@ -85,9 +85,6 @@ def _last(q: deque, n: int) -> list:
 # and the rate assumed before the second sample.
 RATE_EMA_WEIGHT = 0.1
 RATE_BEFORE_DATA_HZ = 10.0
-# A stream is too slow below this fraction of its required rate (a nominal
-# 5 Hz stream jitters; the core's rate check allows the same 10 %).
-SLOW_RATE_FRAC = 0.9
 # CUSUM thresholds are computed once per rate step of this many hertz.
 CUSUM_RATE_STEP_HZ = 0.5
 # How far back (in clean baro samples) the baro offset scale looks for
@@ -453,13 +450,16 @@ class HypothesisLogic:
             self.drift_ex.reset()
             return
         sigma = self._drift_sigma()
-        thr = self.k_cmp * sigma * self.scale["drift"].factor
+        thr = self._drift_thr()
         self.drift_ex.update(t_meas, abs(slope) > thr, abs(slope) > self.m.suspect_frac * thr)
         if abs(slope) <= self.m.suspect_frac * thr:
             self.scale["drift"].push(t_meas, slope / sigma)
 
     def _drift_sigma(self) -> float:
         return math.hypot(self.drift.last_white_sd_mps, self.m.gnss_drift_sigma_mps)
+
+    def _drift_thr(self) -> float:
+        return self.k_cmp * self._drift_sigma() * self.scale["drift"].factor
 
     def _drift_verdict(self, t: int) -> Optional[Verdict]:
         """The GNSS altitude's drift rate against the baro (no Doppler): a
@@ -471,7 +471,7 @@ class HypothesisLogic:
         if (not self.f.gnss_drift_check or {"gnss", "baro_ins"} & self.excluded or self._warm("gnss", t)
                 or d.last_us is None or t - d.last_us > self.stale_us[GNSS] or d.last_slope_mps != d.last_slope_mps):
             return None
-        thr = self.k_cmp * self._drift_sigma() * self.scale["drift"].factor
+        thr = self._drift_thr()
         e = d.last_slope_mps
         txt = (f"GNSS altitude drifted {e:+.2f} m/s against the baro over {d.last_span_s:.0f} s "
                f"(threshold {thr:.2f} m/s)" if abs(e) > self.m.suspect_frac * thr else "")  # a pass has none
@@ -1055,7 +1055,7 @@ class HypothesisLogic:
         tests cannot tell a baro fault from its gaps, and a slow input never
         makes a sensor faulty (the same rule as :meth:`_slow_ins`)."""
         hz = self.rates["baro_ins"].hz
-        if j.situation != "isolated" or "baro" not in j.candidates or hz >= SLOW_RATE_FRAC * self.m.min_baro_rate_hz:
+        if j.situation != "isolated" or "baro" not in j.candidates or hz >= self.m.rate_tolerance_frac * self.m.min_baro_rate_hz:
             return j
         return Judgement("ambiguous", j.candidates, j.sources,
                          f"cannot isolate: {j.reason}; the baro at {hz:.1f} Hz is too sparse to judge it")
