@@ -329,6 +329,7 @@ def _part2(path: str, rates: dict, faults=FAULTS, contenders=CONTENDERS) -> tupl
                 alert = _alert_s(r, clean[m], onset, end, source, d)
                 own = wrong_by_fault(alarm_onsets(r["alarms"]), clean_on[m], wrong, onset, end)
                 row[m] = {"detected": d.detected, "tta_s": d.tta_s, "isolated": d.isolated, "alert_s": alert,
+                          "in_use": _in_use(clean[m], onset, source),
                           "blamed": list(d.first_sources), "wrong": wrong, "wrong_by_fault": own,
                           "hazard_s": _hazard_s(r, clean[m], onset, end)}
             rows.append(row)
@@ -362,6 +363,20 @@ def _alert_s(r: dict, clean: dict, onset: float, end: float, source: str, d) -> 
     j = np.clip(np.searchsorted(clean["t"], t[w], side="right") - 1, 0, clean["t"].size - 1)
     out = ~r["used"][w, c] & clean["used"][j, c]
     return float(t[w][np.argmax(out)] - onset) if out.any() else math.nan
+
+
+def _in_use(clean: dict, onset: float, source: str) -> bool:
+    """Whether the unfaulted flight, at the onset, had the faulty source in its
+    fused output and the monitor available (overall nominal or caution): a
+    fault in a source already out, or while the monitor says it cannot
+    protect, has nothing left to alert. The baseline has no output set: always."""
+    if clean["used"] is None:
+        return True
+    t = clean["t"]
+    if t.size == 0:
+        return False
+    j = int(np.clip(np.searchsorted(t, onset, side="right") - 1, 0, t.size - 1))
+    return bool(clean["used"][j, CHANNEL_OF_SOURCE[source]]) and clean["overall"][j] in ("nominal", "caution")
 
 
 def _hazard_s(r: dict, clean: dict, onset: float, end: float) -> float:
@@ -495,11 +510,36 @@ def report(groups: Dict[str, List[Path]], results: List[dict], wall: float, args
             p(f"| {name} | {len(rows)} | " + " | ".join(cells) + " |")
         p("")
         applicable = [x for x in faulted if x["samples_changed"] > 0]
+        p(in_use_lines(applicable))
+        p("")
         p(f"Runs whose fault changed any sample (the flight has the sensor): {len(applicable)} of {len(faulted)}. "
           "Wrong exclusions the unfaulted flight does not make within 2 s (the fault's own): "
           + ", ".join(f"{m} {sum(bool(x[m].get('wrong_by_fault', x[m]['wrong'])) for x in faulted)}"
                       for m in CONTENDERS) + ".")
     return "\n".join(lines) + "\n"
+
+
+def in_use_lines(applicable: List[dict]) -> str:
+    """In target among the runs whose faulty source the unfaulted flight had in
+    its output with the monitor available at the onset (the runs a monitor can
+    answer for), beside all applicable runs."""
+    out = ["In target where the unfaulted flight had the faulty source in its output and the monitor "
+           "available (nominal or caution) at the onset, against all runs whose fault changed a sample:", ""]
+    out.append("| fault | " + " | ".join(f"{m}: in use at onset / in target there / in target of all"
+                                         for m in CONTENDERS) + " |")
+    out.append("|---|" + "---|" * len(CONTENDERS))
+    for name in [f[0] for f in FAULTS] + ["all"]:
+        rows = [x for x in applicable if name == "all" or x["fault"] == name]
+        if not rows:
+            continue
+        cells = []
+        for m in CONTENDERS:
+            hit = [(a := x[m].get("alert_s", math.nan)) == a and a <= ALERT_TARGET_S.get(x["fault"], math.inf)
+                   for x in rows]
+            use = [x[m].get("in_use", True) for x in rows]
+            cells.append(f"{sum(use)} / {sum(h and u for h, u in zip(hit, use))} / {sum(hit)} of {len(rows)}")
+        out.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(out)
 
 
 def rangefinder_lines(results: List[dict], faults: bool = True) -> str:
