@@ -242,7 +242,7 @@ class AdaptiveFeatures(_Section):
 
     covariance_thresholds: bool = True  # thresholds k*sqrt(P_a + P_b - 2 P_ab), else the paper's fixed metres
     innovation_gating: bool = True  # chi-square gate on each GNSS/rangefinder sample before it enters
-    window_test: bool = True  # sliding-window sum of normalised innovations (slow drifts)
+    window_test: bool = True  # the aux innovations' sequential test, a two-sided CUSUM (slow drifts, small steps)
     isolation_2of3: bool = True  # blame baro+INS when GNSS and rangefinder agree against it
     validated_feedback: bool = True  # feed back only channels validated over a window, rate-limited
     readmission: bool = True  # readmit an excluded source after it has been consistent for readmit_s

@@ -60,7 +60,7 @@ from .scale import ResidualScale
 from .table import Judgement, judge
 from .tracker import SourceTracker
 from .verdict import SENSOR_SOURCES, Verdict, live_hypotheses
-from .window import InnovationWindow
+from .window import RejectionWindow
 
 AUX = ((GNSS, "gnss"), (RNG, "rangefinder"))
 LABEL = {s: s.word for s in SENSOR_SOURCES}  # GNSS, rangefinder, baro+INS
@@ -146,7 +146,7 @@ class HypothesisLogic:
         fast_k = m.cusum_fast_k_sigma if m.mode != "paper" else 0.0
         self.cusum = {s: Cusum(m.cusum_k_sigma, m.cusum_clip_sigma, fast_k) for s in ("gnss", "rangefinder")}
         self.rates = {s: _Rate() for s in ("gnss", "rangefinder", "baro_ins")}
-        self.rejections = {s: InnovationWindow(m.window_s, cap=self.gate) for s in SENSOR_SOURCES}
+        self.rejections = {s: RejectionWindow(m.window_s) for s in SENSOR_SOURCES}
         self.excluded: set[str] = set()
         self.last_accept_us: dict[int, Optional[int]] = {GNSS: None, RNG: None}
         self.last_seen_us: dict[int, Optional[int]] = {GNSS: None, RNG: None}
@@ -313,7 +313,7 @@ class HypothesisLogic:
         if not reject and self.jump is None:
             sc.push(t, self.last_z["baro_ins"])
         if not self._warm("baro_ins", t):
-            self.rejections["baro_ins"].push(t, nu2, reject)
+            self.rejections["baro_ins"].push(t, reject)
             self.baro_judged = (r, math.sqrt(S), reject)
         if reject:
             changes["baro_restart"] = True  # no baro row anywhere; differencing restarts
@@ -402,7 +402,7 @@ class HypothesisLogic:
             self.cusum[name].push(z / sc.factor)
             if not reject and self._cusum_stat(name) < self.m.suspect_frac * self._h(name):
                 sc.push(t, z)  # frozen while the test leans towards a fault
-        self.rejections[name].push(t, z * z, reject)
+        self.rejections[name].push(t, reject)
 
     def _window_thr(self, check, key: str) -> float:
         """A Doppler window check's threshold for its last reading: k times the

@@ -1,46 +1,33 @@
-"""Sliding window (in vehicle time) of squared normalised innovations."""
+"""Sliding window (in vehicle time) of a stream's gate rejections."""
 
 from __future__ import annotations
 
 from collections import deque
 
 
-class InnovationWindow:
-    """Sum of ``nu^2`` and count of gate rejections over the last ``length_us``.
+class RejectionWindow:
+    """How many of a stream's samples the gate rejected over the last
+    ``length_s`` (the innovation tests' ``caution_rejections`` and
+    ``alarm_rejections``)."""
 
-    Rejected samples enter the sum capped at ``cap`` (one wild sample must not
-    mask the window for its whole length, but many must show).
-    """
-
-    def __init__(self, length_s: float, cap: float = 100.0):
+    def __init__(self, length_s: float):
         self.length_us = int(length_s * 1e6)
-        self.cap = cap
-        self._q: deque[tuple[int, float, bool]] = deque()
-        self.total = 0.0
+        self._q: deque[int] = deque()  # times of the rejected samples
         self.rejected = 0
 
     def clear(self) -> None:
         self._q.clear()
-        self.total = 0.0
         self.rejected = 0
 
-    def push(self, t_us: int, nu2: float, rejected: bool) -> None:
-        v = min(nu2, self.cap)
-        self._q.append((t_us, v, rejected))
-        self.total += v
-        self.rejected += rejected
+    def push(self, t_us: int, rejected: bool) -> None:
+        if rejected:
+            self._q.append(t_us)
         self.expire(t_us)
 
     def expire(self, t_us: int) -> None:
+        """Forget the rejections older than the window at ``t_us``."""
         limit = t_us - self.length_us
         q = self._q
-        while q and q[0][0] <= limit:
-            _, v, r = q.popleft()
-            self.total -= v
-            self.rejected -= r
-        if not q:
-            self.total = 0.0
-
-    @property
-    def n(self) -> int:
-        return len(self._q)
+        while q and q[0] <= limit:
+            q.popleft()
+        self.rejected = len(q)
