@@ -1,14 +1,13 @@
 """Fault injection into recorded tlogs: real sensor data with a known fault onset.
 
 The log is split into records (8-byte big-endian receive time + one MAVLink
-frame). A record is a *frame* when its timestamp is plausible (years
-2000-2100), its magic byte and length fit, and its CRC (with the message's
-CRC_EXTRA) checks (:func:`mavnav.ingest.wire.parse_frame`, as the tlog
-reader); anything else (radio garbage, truncated frames) is kept as an
-opaque *junk* record, byte for byte, up to the next valid record. Unlike the
-reader, which skips garbage, the injector must keep every byte, and it
-splits the whole file up front: hence its own record walk over the same
-frame parser.
+frame) by the tlog reader's own record walk
+(:class:`mavnav.ingest.records.RecordWalk`: plausible timestamps, CRC with
+the message's CRC_EXTRA, resynchronisation), so the injector's *frames* are
+exactly the frames the monitor reads, at the same offsets. Unlike the reader,
+which skips the rest, the injector keeps every byte: what lies between two
+frames (radio garbage, damaged or unknown frames, a truncated tail) is an
+opaque *junk* record, copied byte for byte.
 
 Every record the faults do not touch is copied byte for byte. A faulted
 message is decoded with pymavlink, changed, and re-framed with its original
@@ -33,6 +32,7 @@ which remove every record in the window (all systems, junk included).
 
 from __future__ import annotations
 
+import io
 import struct
 from dataclasses import dataclass, field
 from typing import Callable, Dict, List, Optional, Sequence, Tuple
@@ -47,13 +47,12 @@ from ..errors import InputError
 from ..frames import down_row_from_euler
 from ..ingest import wire
 from ..ingest.clock import is_reboot
+from ..ingest.records import ALL_KNOWN, RecordWalk
 from ..ingest.systems import MAV_AUTOPILOT_INVALID, MAV_TYPE_GCS
 from .effects import height_error_m, keeps, out_of_range_reading_m, spikes
 from .faults import describe_fault
 from .scenario import Fault
 
-_TS_MIN_US = 946684800 * 10**6  # 2000-01-01
-_TS_MAX_US = 4102444800 * 10**6  # 2100-01-01
 _UNIX_US = 10**14  # a time_usec above this is Unix time, not boot time
 
 ID = wire.MSG_ID
@@ -96,61 +95,31 @@ class Record:
 # ---------------------------------------------------------------- splitting
 
 
-def _frame_end(data: bytes, pos: int) -> int:
-    """End of a valid record starting at ``pos``, or -1."""
-    n = len(data)
-    if pos + 8 + 8 > n:
-        return -1
-    ts = int.from_bytes(data[pos : pos + 8], "big")
-    if not (_TS_MIN_US <= ts <= _TS_MAX_US):
-        return -1
-    f = pos + 8
-    if data[f] == wire.STX_V2 and data[f + 2] & ~wire.IFLAG_SIGNED:
-        return -1  # unknown incompat flag: not a frame we can trust
-    status, flen = wire.parse_frame(data, f, n)[:2]
-    if status == wire.OK:
-        return f + flen
-    if status == wire.UNKNOWN_ID:
-        # unknown message: accept only when a plausible record follows (or EOF)
-        nxt = f + flen
-        if nxt == n:
-            return nxt
-        if nxt + 9 <= n and _TS_MIN_US <= int.from_bytes(data[nxt : nxt + 8], "big") <= _TS_MAX_US and data[nxt + 8] in (wire.STX_V2, wire.STX_V1):
-            return nxt
-    return -1  # bad start byte, bad CRC, or cut short
-
-
-def _next_valid(data: bytes, start: int) -> int:
-    n = len(data)
-    i = start + 8
-    while True:
-        m = wire.next_start(data, i, n)
-        if m < 0:
-            return n
-        p = m - 8
-        if p >= start and _frame_end(data, p) > 0:
-            return p
-        i = m + 1
-
-
 def split_tlog(data: bytes) -> List[Record]:
-    """Split tlog bytes into frame and junk records covering every byte, in order."""
+    """Split tlog bytes into frame and junk records covering every byte, in order:
+    the frames the tlog reader yields (:class:`mavnav.ingest.records.RecordWalk`),
+    and the bytes between them (garbage, damaged or unknown frames, a cut tail)
+    as junk records."""
     out: List[Record] = []
-    pos, n = 0, len(data)
-    while pos < n:
-        end = _frame_end(data, pos)
-        if end > 0:
-            f = pos + 8
-            _, _, msgid, sysid, compid, _ = wire.parse_frame(data, f, n)
-            out.append(Record(pos, end, int.from_bytes(data[pos:f], "big"), True,
-                              1 if data[f] == wire.STX_V1 else 2, msgid, sysid, compid))
-            pos = end
-            continue
-        q = _next_valid(data, pos + 1)
-        ts = int.from_bytes(data[pos : pos + 8], "big") if pos + 8 <= n else 0
-        out.append(Record(pos, q, ts, False))
-        pos = q
+    walk = RecordWalk(ALL_KNOWN, offsets=True)
+    pos = 0
+    for item in walk.walk(io.BytesIO(data)):
+        if type(item) is not tuple:
+            continue  # a problem: its bytes become junk
+        _, msgid, sysid, compid, _, start, end = item
+        if start > pos:
+            out.append(_junk(data, pos, start))
+        out.append(Record(start, end, int.from_bytes(data[start : start + 8], "big"), True,
+                          1 if data[start + 8] == wire.STX_V1 else 2, msgid, sysid, compid))
+        pos = end
+    if pos < len(data):
+        out.append(_junk(data, pos, len(data)))
     return out
+
+
+def _junk(data: bytes, start: int, end: int) -> Record:
+    """The bytes between two frames, kept as they are."""
+    return Record(start, end, int.from_bytes(data[start : start + 8], "big") if start + 8 <= len(data) else 0, False)
 
 
 # ---------------------------------------------------------------- frames
