@@ -18,8 +18,9 @@ re-signed without the key; counted in the report).
 Vehicle time: the clock is the autopilot component's ``time_boot_ms`` (its
 ``time_usec`` only while no ``time_boot_ms`` has been seen). A record takes
 its own ``time_boot_ms``, or its own ``time_usec`` when that is within 1 s of
-the clock (zero and Unix-looking values above 1e14 us are ignored: GNSS and
-old ArduPilot IMU stamps are not always on the boot clock), else the latest
+the clock (zero and Unix times are ignored, the normaliser's threshold
+:data:`mavnav.ingest.clock.UNIX_THRESHOLD_US`: GNSS and old ArduPilot IMU
+stamps are not always on the boot clock), else the latest
 clock value before it. The clock running backwards by more than
 ``ingest.reboot_jump_s`` (2 s) is a reboot (``boot`` counts from 0): the
 normaliser's rule, :func:`mavnav.ingest.clock.is_reboot` (one message decides
@@ -46,14 +47,13 @@ from ..constants import G0_MPS2
 from ..errors import InputError
 from ..frames import down_row_from_euler
 from ..ingest import wire
-from ..ingest.clock import is_reboot
+from ..ingest.clock import UNIX_THRESHOLD_US, is_reboot
 from ..ingest.records import ALL_KNOWN, RecordWalk
 from ..ingest.systems import MAV_AUTOPILOT_INVALID, MAV_TYPE_GCS
 from .effects import height_error_m, keeps, out_of_range_reading_m, spikes
 from .faults import describe_fault
 from .scenario import Fault
 
-_UNIX_US = 10**14  # a time_usec above this is Unix time, not boot time
 
 ID = wire.MSG_ID
 ID_HEARTBEAT = ID["HEARTBEAT"]
@@ -153,7 +153,7 @@ def _vehicle_time_s(data: bytes, rec: Record) -> Optional[Tuple[float, bool]]:
         return None
     read, scale = tr
     v = read(_payload(data, rec))  # MAVLink 2 trailing-zero truncation padded
-    if v == 0 or (scale == 1e-6 and v >= _UNIX_US):
+    if v == 0 or (scale == 1e-6 and v >= UNIX_THRESHOLD_US):
         return None
     return v * scale, scale == 1e-3
 
@@ -325,7 +325,7 @@ def _shift_boot_times(msg, shift_s: float) -> bool:
     if hasattr(msg, "time_boot_ms"):
         msg.time_boot_ms = int(max(0, msg.time_boot_ms - round(shift_s * 1000)))
         moved = True
-    if hasattr(msg, "time_usec") and msg.time_usec < _UNIX_US:
+    if hasattr(msg, "time_usec") and msg.time_usec < UNIX_THRESHOLD_US:
         msg.time_usec = int(max(0, msg.time_usec - round(shift_s * 1e6)))
         moved = True
     return moved
