@@ -7,7 +7,10 @@ the message's CRC_EXTRA, resynchronisation), so the injector's *frames* are
 exactly the frames the monitor reads, at the same offsets. Unlike the reader,
 which skips the rest, the injector keeps every byte: what lies between two
 frames (radio garbage, damaged or unknown frames, a truncated tail) is an
-opaque *junk* record, copied byte for byte.
+opaque *junk* record, copied byte for byte. The vehicle is the system the
+monitor would follow: the first heartbeat
+:func:`mavnav.ingest.systems.is_vehicle_heartbeat` takes (of ``sysid`` if
+given), as the normaliser chooses it.
 
 Every record the faults do not touch is copied byte for byte. A faulted
 message is decoded with pymavlink, changed, and re-framed with its original
@@ -49,7 +52,7 @@ from ..frames import down_row_from_euler
 from ..ingest import wire
 from ..ingest.clock import UNIX_THRESHOLD_US, is_reboot
 from ..ingest.records import ALL_KNOWN, RecordWalk
-from ..ingest.systems import MAV_AUTOPILOT_INVALID, MAV_TYPE_GCS
+from ..ingest.systems import is_vehicle_heartbeat
 from .effects import height_error_m, keeps, out_of_range_reading_m, spikes
 from .faults import describe_fault
 from .scenario import Fault
@@ -57,6 +60,7 @@ from .scenario import Fault
 
 ID = wire.MSG_ID
 ID_HEARTBEAT = ID["HEARTBEAT"]
+_decode_heartbeat = wire.make_decoder(ID_HEARTBEAT)  # as the normaliser decodes it
 ID_GPS_RAW_INT, ID_GPS2_RAW = ID["GPS_RAW_INT"], ID["GPS2_RAW"]
 ID_ATTITUDE = ID["ATTITUDE"]
 ID_HIGHRES_IMU = ID["HIGHRES_IMU"]
@@ -67,9 +71,6 @@ GNSS_IDS = (ID_GPS_RAW_INT, ID_GPS2_RAW)
 RNG_IDS = (ID_DISTANCE_SENSOR, ID_RANGEFINDER)
 BARO_IDS = PRESSURE_IDS + (ID_HIGHRES_IMU,)
 IMU_IDS = (ID_HIGHRES_IMU,) + INT_IMU_IDS
-# HEARTBEAT types that are never the vehicle: besides the normaliser's ground
-# station, an onboard computer, a gimbal and an ADS-B receiver
-NOT_A_VEHICLE = (MAV_TYPE_GCS, mav2.MAV_TYPE_ONBOARD_CONTROLLER, mav2.MAV_TYPE_GIMBAL, mav2.MAV_TYPE_ADSB)
 MAV_SENSOR_ROTATION_PITCH_270 = mav2.MAV_SENSOR_ROTATION_PITCH_270  # a DISTANCE_SENSOR looking down
 
 _KIND_IDS = {
@@ -205,19 +206,17 @@ class _FaultState:
 
 
 def _detect_vehicle(data: bytes, records: Sequence[Record], sysid: Optional[int]) -> Tuple[Optional[int], Optional[int]]:
-    """(system id, autopilot component id): the first HEARTBEAT of an autopilot
-    (autopilot != MAV_AUTOPILOT_INVALID, not a GCS/onboard/gimbal/ADS-B type),
-    else the busiest (sysid, compid)."""
+    """(system id, autopilot component id): those of the first HEARTBEAT the
+    normaliser takes for the vehicle's (:func:`mavnav.ingest.systems.is_vehicle_heartbeat`,
+    of system ``sysid`` if given), so that the faults go where the monitor
+    looks; else (no such heartbeat: the monitor has no vehicle to agree with)
+    the busiest (sysid, compid)."""
     counts: Dict[Tuple[int, int], int] = {}
     for r in records:
         if not r.is_frame or (sysid is not None and r.sysid != sysid):
             continue
-        if r.msgid == ID_HEARTBEAT:
-            pl = _payload(data, r) + bytes(9)
-            # HEARTBEAT wire order: custom_mode u32, type u8, autopilot u8, ...
-            mav_type, autopilot = pl[4], pl[5]
-            if autopilot != MAV_AUTOPILOT_INVALID and mav_type not in NOT_A_VEHICLE:
-                return r.sysid, r.compid
+        if r.msgid == ID_HEARTBEAT and is_vehicle_heartbeat(_decode_heartbeat(_payload(data, r))):
+            return r.sysid, r.compid
         counts[(r.sysid, r.compid)] = counts.get((r.sysid, r.compid), 0) + 1
     if not counts:
         return sysid, None
