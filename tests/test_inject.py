@@ -336,3 +336,19 @@ def test_the_injector_faults_the_vehicle_the_monitor_chooses(tmp_path, first, sy
     for _ in src:
         pass
     assert (rep["sysid"], rep["autopilot_compid"]) == (src.stats.vehicle.sysid, src.stats.vehicle.compid)
+
+
+def test_a_message_id_above_255_is_reframed():
+    """A reboot shifts every boot-time field, STORAGE_INFORMATION's (id 261, MAVLink 2 only) too."""
+    from pymavlink.dialects.v20 import ardupilotmega as mav2
+
+    from mavnav.sim.inject import reframe
+
+    link = mav2.MAVLink(None, srcSystem=1, srcComponent=1)
+    original = bytes(mav2.MAVLink_storage_information_message(70_000, 1, 1, 2, 3.0, 1.0, 4.0, 5.0, 6.0).pack(link))
+    msg = link.decode(bytearray(original))
+    msg.time_boot_ms = 20_000
+    out = reframe(original, msg)
+    back = mav2.MAVLink(None).decode(bytearray(out))
+    assert back.get_type() == "STORAGE_INFORMATION" and back.time_boot_ms == 20_000
+    assert back.available_capacity == 4.0 and out[2:10] == original[2:10]

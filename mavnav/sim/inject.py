@@ -163,9 +163,9 @@ def reframe(original: bytes, msg) -> bytes:
     """Re-frame a modified message with the original frame's header fields and a fresh CRC."""
     v1 = original[0] == 0xFE
     scratch = mav2.MAVLink(None)
-    msg.pack(scratch, force_mavlink1=True)  # full payload, extensions included
-    payload = bytes(msg.get_payload())
+    msg.pack(scratch)  # as MAVLink 2 (an id above 255 has no MAVLink 1 header): trailing zeros stripped
     cls = mav2.mavlink_map[msg.get_msgId()]
+    payload = bytes(msg.get_payload()).ljust(cls.unpacker.size, b"\0")  # the full payload, extensions included
     if v1:
         payload = payload[: original[1]]
         header = bytes((0xFE, len(payload), original[2], original[3], original[4], original[5]))
