@@ -86,8 +86,8 @@ def test_reader_and_injector_see_the_same_frames(tmp_path, seed, chunk):
     # the same frames: count, then offsets (the timestamp and payload at each)
     assert len(seen) == len(frames) == n == reader.frames - reader.unknown_frames
     assert reader.unknown_frames == 1 and reader.garbage_bytes > 0 and reader.truncated_bytes > 0
-    at = [(int.from_bytes(data[r.start : r.start + 8], "big") / 1e6, r.msgid, r.sysid, r.compid, _payload(data, r.start))
-          for r in frames]
+    at = [(int.from_bytes(data[r.start : r.start + 8], "big") / 1e6, r.msgid, r.sysid, r.compid,
+           _payload(data, r.start)) for r in frames]
     assert at == seen
     # every byte in one record, in order; the junk is what the reader skipped
     assert records[0].start == 0 and records[-1].end == len(data)
