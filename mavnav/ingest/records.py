@@ -20,8 +20,10 @@ frames at the same offsets.
 
 from __future__ import annotations
 
+import io
 from collections import Counter
-from typing import BinaryIO, Iterator, Optional, Union
+from pathlib import Path
+from typing import Iterator, Optional, Union
 
 from ..samples import Rejected
 from . import wire
@@ -104,16 +106,17 @@ class RecordWalk:
         self.truncated_bytes = 0
         self.truncated_at: Optional[int] = None  # byte offset of a record the end of the file cuts short
 
-    def walk(self, f: BinaryIO) -> Iterator[Item]:
-        """The items of the binary file ``f``, read from its current position to its end."""
+    def walk(self, source: Union[str, Path, bytes]) -> Iterator[Item]:
+        """The items of a tlog: the file at path ``source``, or a whole tlog's bytes."""
         w = _Walk()
-        while True:
-            self._refill(f, w)
-            if w.pos >= len(w.buf):
-                break
-            yield from self._records(w)
-            if w.eof and w.pos >= len(w.buf):
-                break
+        with io.BytesIO(source) if isinstance(source, bytes) else open(source, "rb") as f:
+            while True:
+                self._refill(f, w)
+                if w.pos >= len(w.buf):
+                    break
+                yield from self._records(w)
+                if w.eof and w.pos >= len(w.buf):
+                    break
         if w.bad_from >= 0:
             self.garbage_bytes += w.base + len(w.buf) - w.bad_from
             yield Rejected(_seconds(w.last_ts), "garbage", "bytes skipped at end of file")

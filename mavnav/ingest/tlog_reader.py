@@ -45,5 +45,4 @@ class TlogReader(RecordWalk):
             raise InputError(f"{self.path}: not a tlog (no MAVLink record with a valid checksum found)")
 
     def __iter__(self) -> Iterator[Item]:
-        with open(self.path, "rb") as f:
-            yield from self.walk(f)
+        return self.walk(self.path)

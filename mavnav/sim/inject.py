@@ -36,7 +36,6 @@ which remove every record in the window (all systems, junk included).
 
 from __future__ import annotations
 
-import io
 import struct
 from dataclasses import dataclass, field
 from typing import Callable, Dict, List, Optional, Sequence, Tuple
@@ -104,7 +103,7 @@ def split_tlog(data: bytes) -> List[Record]:
     out: List[Record] = []
     walk = RecordWalk(ALL_KNOWN, offsets=True)
     pos = 0
-    for item in walk.walk(io.BytesIO(data)):
+    for item in walk.walk(data):
         if type(item) is not tuple:
             continue  # a problem: its bytes become junk
         _, msgid, sysid, compid, _, start, end = item
