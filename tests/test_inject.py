@@ -298,3 +298,57 @@ def test_cli_inject_writes_output_and_sidecar(tmp_path, px4_log):
     assert bad.exit_code == 2 and "needs a magnitude" in bad.output
     assert "FAULT syntax" in CliRunner().invoke(main, ["inject", "--help"]).output
     assert math.isfinite(side["faults"][0]["first_recv_unix_s"])
+
+
+def _systems_log(path, first) -> bytes:
+    """Heartbeats of a ground station, a companion computer (no autopilot), a
+    gimbal that names an autopilot and a quadrotor (system 1, autopilot
+    component 1), in the order ``first`` then the rest, each with a few ATTITUDE frames."""
+    from pymavlink.dialects.v20 import ardupilotmega as mav2
+    from tests.support.tlog_writer import TlogWriter
+
+    systems = {  # name: (sysid, compid, MAV_TYPE, MAV_AUTOPILOT)
+        "gcs": (255, 190, mav2.MAV_TYPE_GCS, mav2.MAV_AUTOPILOT_INVALID),
+        "companion": (1, 191, mav2.MAV_TYPE_ONBOARD_CONTROLLER, mav2.MAV_AUTOPILOT_INVALID),
+        "gimbal": (2, 154, mav2.MAV_TYPE_GIMBAL, mav2.MAV_AUTOPILOT_ARDUPILOTMEGA),
+        "quad": (1, 1, mav2.MAV_TYPE_QUADROTOR, mav2.MAV_AUTOPILOT_ARDUPILOTMEGA),
+    }
+    order = [first] + [k for k in systems if k != first]
+    with TlogWriter(path) as w:
+        for k in range(40):
+            for name in order:
+                sysid, compid, mav_type, autopilot = systems[name]
+                t = 1_700_000_000 + k * 0.1
+                if k % 10 == 0:
+                    w.write(w.mav.heartbeat_encode(mav_type, autopilot, 0, 0, 4, 3), t, sysid, compid)
+                w.write(w.mav.attitude_encode(k * 100, 0.0, 0.0, 0.0, 0, 0, 0), t, sysid, compid)
+    return path.read_bytes()
+
+
+@pytest.mark.parametrize("first", ["gcs", "companion", "gimbal", "quad"])
+@pytest.mark.parametrize("sysid", [None, 1])
+def test_the_injector_faults_the_vehicle_the_monitor_chooses(tmp_path, first, sysid):
+    from mavnav.ingest import TlogSource
+
+    data = _systems_log(tmp_path / "systems.tlog", first)
+    _, rep = inject_bytes(data, [parse_fault("gnss_step:onset=1,magnitude=3")], sysid=sysid)
+    src = TlogSource(tmp_path / "systems.tlog", sysid=sysid)
+    for _ in src:
+        pass
+    assert (rep["sysid"], rep["autopilot_compid"]) == (src.stats.vehicle.sysid, src.stats.vehicle.compid)
+
+
+def test_a_message_id_above_255_is_reframed():
+    """A reboot shifts every boot-time field, STORAGE_INFORMATION's (id 261, MAVLink 2 only) too."""
+    from pymavlink.dialects.v20 import ardupilotmega as mav2
+
+    from mavnav.sim.inject import reframe
+
+    link = mav2.MAVLink(None, srcSystem=1, srcComponent=1)
+    original = bytes(mav2.MAVLink_storage_information_message(70_000, 1, 1, 2, 3.0, 1.0, 4.0, 5.0, 6.0).pack(link))
+    msg = link.decode(bytearray(original))
+    msg.time_boot_ms = 20_000
+    out = reframe(original, msg)
+    back = mav2.MAVLink(None).decode(bytearray(out))
+    assert back.get_type() == "STORAGE_INFORMATION" and back.time_boot_ms == 20_000
+    assert back.available_capacity == 4.0 and out[2:10] == original[2:10]

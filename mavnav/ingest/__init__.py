@@ -1,6 +1,7 @@
 """MAVLink ingestion: live links and recorded tlogs -> mavnav samples.
 
-Data flow: a frame reader (:mod:`.tlog_reader` for files, :mod:`.stream_reader`
+Data flow: a frame reader (:mod:`.tlog_reader` for files, over the record
+walk of :mod:`.records` that the fault injector shares; :mod:`.stream_reader`
 for live bytes) finds and CRC-checks MAVLink frames; one
 :class:`~.normaliser.Normaliser` per link turns the frames it wants into
 :mod:`mavnav.samples` in SI units on the vehicle clock. :class:`TlogSource`

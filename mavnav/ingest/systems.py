@@ -109,8 +109,7 @@ class OtherSystems:
             what, hint = "no heartbeat heard", f"; --sysid {sysid} to monitor it instead"
         else:
             what = describe_system(*o.heartbeat)
-            hint = "" if o.heartbeat.type == MAV_TYPE_GCS or o.heartbeat.autopilot == MAV_AUTOPILOT_INVALID else \
-                f"; --sysid {sysid} to monitor it instead"
+            hint = f"; --sysid {sysid} to monitor it instead" if is_vehicle_heartbeat(o.heartbeat._asdict()) else ""
         return Notice(recv_s, "ignored", f"ignoring system {sysid} ({what}): not the monitored vehicle "
                                          f"(system {vehicle}){hint}")
 

@@ -1,14 +1,16 @@
 """Fault injection into recorded tlogs: real sensor data with a known fault onset.
 
 The log is split into records (8-byte big-endian receive time + one MAVLink
-frame). A record is a *frame* when its timestamp is plausible (years
-2000-2100), its magic byte and length fit, and its CRC (with the message's
-CRC_EXTRA) checks (:func:`mavnav.ingest.wire.parse_frame`, as the tlog
-reader); anything else (radio garbage, truncated frames) is kept as an
-opaque *junk* record, byte for byte, up to the next valid record. Unlike the
-reader, which skips garbage, the injector must keep every byte, and it
-splits the whole file up front: hence its own record walk over the same
-frame parser.
+frame) by the tlog reader's own record walk
+(:class:`mavnav.ingest.records.RecordWalk`: plausible timestamps, CRC with
+the message's CRC_EXTRA, resynchronisation), so the injector's *frames* are
+exactly the frames the monitor reads, at the same offsets. Unlike the reader,
+which skips the rest, the injector keeps every byte: what lies between two
+frames (radio garbage, damaged or unknown frames, a truncated tail) is an
+opaque *junk* record, copied byte for byte. The vehicle is the system the
+monitor would follow: the first heartbeat
+:func:`mavnav.ingest.systems.is_vehicle_heartbeat` takes (of ``sysid`` if
+given), as the normaliser chooses it.
 
 Every record the faults do not touch is copied byte for byte. A faulted
 message is decoded with pymavlink, changed, and re-framed with its original
@@ -19,8 +21,9 @@ re-signed without the key; counted in the report).
 Vehicle time: the clock is the autopilot component's ``time_boot_ms`` (its
 ``time_usec`` only while no ``time_boot_ms`` has been seen). A record takes
 its own ``time_boot_ms``, or its own ``time_usec`` when that is within 1 s of
-the clock (zero and Unix-looking values above 1e14 us are ignored: GNSS and
-old ArduPilot IMU stamps are not always on the boot clock), else the latest
+the clock (zero and Unix times are ignored, the normaliser's threshold
+:data:`mavnav.ingest.clock.UNIX_THRESHOLD_US`: GNSS and old ArduPilot IMU
+stamps are not always on the boot clock), else the latest
 clock value before it. The clock running backwards by more than
 ``ingest.reboot_jump_s`` (2 s) is a reboot (``boot`` counts from 0): the
 normaliser's rule, :func:`mavnav.ingest.clock.is_reboot` (one message decides
@@ -46,18 +49,17 @@ from ..constants import G0_MPS2
 from ..errors import InputError
 from ..frames import down_row_from_euler
 from ..ingest import wire
-from ..ingest.clock import is_reboot
-from ..ingest.systems import MAV_AUTOPILOT_INVALID, MAV_TYPE_GCS
+from ..ingest.clock import UNIX_THRESHOLD_US, is_reboot
+from ..ingest.records import ALL_KNOWN, RecordWalk
+from ..ingest.systems import is_vehicle_heartbeat
 from .effects import height_error_m, keeps, out_of_range_reading_m, spikes
 from .faults import describe_fault
 from .scenario import Fault
 
-_TS_MIN_US = 946684800 * 10**6  # 2000-01-01
-_TS_MAX_US = 4102444800 * 10**6  # 2100-01-01
-_UNIX_US = 10**14  # a time_usec above this is Unix time, not boot time
 
 ID = wire.MSG_ID
 ID_HEARTBEAT = ID["HEARTBEAT"]
+_decode_heartbeat = wire.make_decoder(ID_HEARTBEAT)  # as the normaliser decodes it
 ID_GPS_RAW_INT, ID_GPS2_RAW = ID["GPS_RAW_INT"], ID["GPS2_RAW"]
 ID_ATTITUDE = ID["ATTITUDE"]
 ID_HIGHRES_IMU = ID["HIGHRES_IMU"]
@@ -68,9 +70,6 @@ GNSS_IDS = (ID_GPS_RAW_INT, ID_GPS2_RAW)
 RNG_IDS = (ID_DISTANCE_SENSOR, ID_RANGEFINDER)
 BARO_IDS = PRESSURE_IDS + (ID_HIGHRES_IMU,)
 IMU_IDS = (ID_HIGHRES_IMU,) + INT_IMU_IDS
-# HEARTBEAT types that are never the vehicle: besides the normaliser's ground
-# station, an onboard computer, a gimbal and an ADS-B receiver
-NOT_A_VEHICLE = (MAV_TYPE_GCS, mav2.MAV_TYPE_ONBOARD_CONTROLLER, mav2.MAV_TYPE_GIMBAL, mav2.MAV_TYPE_ADSB)
 MAV_SENSOR_ROTATION_PITCH_270 = mav2.MAV_SENSOR_ROTATION_PITCH_270  # a DISTANCE_SENSOR looking down
 
 _KIND_IDS = {
@@ -96,61 +95,31 @@ class Record:
 # ---------------------------------------------------------------- splitting
 
 
-def _frame_end(data: bytes, pos: int) -> int:
-    """End of a valid record starting at ``pos``, or -1."""
-    n = len(data)
-    if pos + 8 + 8 > n:
-        return -1
-    ts = int.from_bytes(data[pos : pos + 8], "big")
-    if not (_TS_MIN_US <= ts <= _TS_MAX_US):
-        return -1
-    f = pos + 8
-    if data[f] == wire.STX_V2 and data[f + 2] & ~wire.IFLAG_SIGNED:
-        return -1  # unknown incompat flag: not a frame we can trust
-    status, flen = wire.parse_frame(data, f, n)[:2]
-    if status == wire.OK:
-        return f + flen
-    if status == wire.UNKNOWN_ID:
-        # unknown message: accept only when a plausible record follows (or EOF)
-        nxt = f + flen
-        if nxt == n:
-            return nxt
-        if nxt + 9 <= n and _TS_MIN_US <= int.from_bytes(data[nxt : nxt + 8], "big") <= _TS_MAX_US and data[nxt + 8] in (wire.STX_V2, wire.STX_V1):
-            return nxt
-    return -1  # bad start byte, bad CRC, or cut short
-
-
-def _next_valid(data: bytes, start: int) -> int:
-    n = len(data)
-    i = start + 8
-    while True:
-        m = wire.next_start(data, i, n)
-        if m < 0:
-            return n
-        p = m - 8
-        if p >= start and _frame_end(data, p) > 0:
-            return p
-        i = m + 1
-
-
 def split_tlog(data: bytes) -> List[Record]:
-    """Split tlog bytes into frame and junk records covering every byte, in order."""
+    """Split tlog bytes into frame and junk records covering every byte, in order:
+    the frames the tlog reader yields (:class:`mavnav.ingest.records.RecordWalk`),
+    and the bytes between them (garbage, damaged or unknown frames, a cut tail)
+    as junk records."""
     out: List[Record] = []
-    pos, n = 0, len(data)
-    while pos < n:
-        end = _frame_end(data, pos)
-        if end > 0:
-            f = pos + 8
-            _, _, msgid, sysid, compid, _ = wire.parse_frame(data, f, n)
-            out.append(Record(pos, end, int.from_bytes(data[pos:f], "big"), True,
-                              1 if data[f] == wire.STX_V1 else 2, msgid, sysid, compid))
-            pos = end
-            continue
-        q = _next_valid(data, pos + 1)
-        ts = int.from_bytes(data[pos : pos + 8], "big") if pos + 8 <= n else 0
-        out.append(Record(pos, q, ts, False))
-        pos = q
+    walk = RecordWalk(ALL_KNOWN, offsets=True)
+    pos = 0
+    for item in walk.walk(data):
+        if type(item) is not tuple:
+            continue  # a problem: its bytes become junk
+        _, msgid, sysid, compid, _, start, end = item
+        if start > pos:
+            out.append(_junk(data, pos, start))
+        out.append(Record(start, end, int.from_bytes(data[start : start + 8], "big"), True,
+                          1 if data[start + 8] == wire.STX_V1 else 2, msgid, sysid, compid))
+        pos = end
+    if pos < len(data):
+        out.append(_junk(data, pos, len(data)))
     return out
+
+
+def _junk(data: bytes, start: int, end: int) -> Record:
+    """The bytes between two frames, kept as they are."""
+    return Record(start, end, int.from_bytes(data[start : start + 8], "big") if start + 8 <= len(data) else 0, False)
 
 
 # ---------------------------------------------------------------- frames
@@ -184,7 +153,7 @@ def _vehicle_time_s(data: bytes, rec: Record) -> Optional[Tuple[float, bool]]:
         return None
     read, scale = tr
     v = read(_payload(data, rec))  # MAVLink 2 trailing-zero truncation padded
-    if v == 0 or (scale == 1e-6 and v >= _UNIX_US):
+    if v == 0 or (scale == 1e-6 and v >= UNIX_THRESHOLD_US):
         return None
     return v * scale, scale == 1e-3
 
@@ -193,9 +162,9 @@ def reframe(original: bytes, msg) -> bytes:
     """Re-frame a modified message with the original frame's header fields and a fresh CRC."""
     v1 = original[0] == 0xFE
     scratch = mav2.MAVLink(None)
-    msg.pack(scratch, force_mavlink1=True)  # full payload, extensions included
-    payload = bytes(msg.get_payload())
+    msg.pack(scratch)  # as MAVLink 2 (an id above 255 has no MAVLink 1 header): trailing zeros stripped
     cls = mav2.mavlink_map[msg.get_msgId()]
+    payload = bytes(msg.get_payload()).ljust(cls.unpacker.size, b"\0")  # the full payload, extensions included
     if v1:
         payload = payload[: original[1]]
         header = bytes((0xFE, len(payload), original[2], original[3], original[4], original[5]))
@@ -236,19 +205,17 @@ class _FaultState:
 
 
 def _detect_vehicle(data: bytes, records: Sequence[Record], sysid: Optional[int]) -> Tuple[Optional[int], Optional[int]]:
-    """(system id, autopilot component id): the first HEARTBEAT of an autopilot
-    (autopilot != MAV_AUTOPILOT_INVALID, not a GCS/onboard/gimbal/ADS-B type),
-    else the busiest (sysid, compid)."""
+    """(system id, autopilot component id): those of the first HEARTBEAT the
+    normaliser takes for the vehicle's (:func:`mavnav.ingest.systems.is_vehicle_heartbeat`,
+    of system ``sysid`` if given), so that the faults go where the monitor
+    looks; else (no such heartbeat: the monitor has no vehicle to agree with)
+    the busiest (sysid, compid)."""
     counts: Dict[Tuple[int, int], int] = {}
     for r in records:
         if not r.is_frame or (sysid is not None and r.sysid != sysid):
             continue
-        if r.msgid == ID_HEARTBEAT:
-            pl = _payload(data, r) + bytes(9)
-            # HEARTBEAT wire order: custom_mode u32, type u8, autopilot u8, ...
-            mav_type, autopilot = pl[4], pl[5]
-            if autopilot != MAV_AUTOPILOT_INVALID and mav_type not in NOT_A_VEHICLE:
-                return r.sysid, r.compid
+        if r.msgid == ID_HEARTBEAT and is_vehicle_heartbeat(_decode_heartbeat(_payload(data, r))):
+            return r.sysid, r.compid
         counts[(r.sysid, r.compid)] = counts.get((r.sysid, r.compid), 0) + 1
     if not counts:
         return sysid, None
@@ -356,7 +323,7 @@ def _shift_boot_times(msg, shift_s: float) -> bool:
     if hasattr(msg, "time_boot_ms"):
         msg.time_boot_ms = int(max(0, msg.time_boot_ms - round(shift_s * 1000)))
         moved = True
-    if hasattr(msg, "time_usec") and msg.time_usec < _UNIX_US:
+    if hasattr(msg, "time_usec") and msg.time_usec < UNIX_THRESHOLD_US:
         msg.time_usec = int(max(0, msg.time_usec - round(shift_s * 1e6)))
         moved = True
     return moved
