@@ -13,6 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal, Optional, Union
 
+import annotated_types
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
@@ -29,23 +30,77 @@ class _Section(BaseModel):
 
 
 # ---------------------------------------------------------------- sensors
+#
+# Each sensor is described twice, on purpose: by the estimator's model of it
+# (SensorsConfig below) and by the simulator's truth (the scenario's
+# ``sensors:``, mavnav.sim.scenario.SimSensorsConfig), which must stay free to
+# differ from the model. The quantities both give are declared once, in the
+# *Noise sections: their key (unit in the name), meaning and bounds. The
+# model's sections extend them with what only the model has; the simulator's
+# extend them with what only the truth has and declare their own defaults
+# with truth_field, which keeps the key's bounds.
 
 
-class InsConfig(_Section):
-    """INS vertical specific-force error model (MODEL.md eq. 1-2)."""
+class InsNoise(_Section):
+    """The INS vertical specific-force noise (MODEL.md eq. 1-2)."""
 
     sigma_a_mps2: float = Field(0.1, gt=0)  # RMS of the acceleration noise
     alpha_a_per_s: float = Field(1.0, gt=0)  # spectrum width of that noise
+
+
+class BaroNoise(_Section):
+    """The barometric altimeter's Gauss-Markov noise u (MODEL.md eq. 3-5)."""
+
+    # sigma_bb 0.2 m: measured on 69 real flights with bench/estimator_real.py
+    # (BENCHMARKS.md, docs/error_models.md)
+    sigma_bb_m: float = Field(0.2, gt=0)  # RMS of the Gauss-Markov noise u
+    gamma_bb_per_s: float = Field(0.5, gt=0)  # its inverse correlation time
+
+
+class GnssNoise(_Section):
+    """The GNSS altitude's white noise."""
+
+    sigma_z_m: float = Field(2.0, gt=0)  # vertical noise when v_acc is not used
+
+
+class RangefinderNoise(_Section):
+    """The rangefinder's white noise."""
+
+    sigma_m: float = Field(0.05, gt=0)
+
+
+def truth_field(section: type[BaseModel], key: str, default: Optional[float] = None, *, zero_ok: bool = False):
+    """The field ``key`` of ``section`` as the simulator's truth of the same
+    quantity declares it: the same bounds, its own ``default`` (None: the
+    model's), and with ``zero_ok`` a bound > 0 relaxed to >= 0 (a noise-free
+    simulated sensor; the model's noise must stay positive)."""
+    f = section.model_fields[key]
+    bounds = {}
+    for m in f.metadata:
+        if isinstance(m, annotated_types.Gt):
+            bounds["ge" if zero_ok and m.gt == 0 else "gt"] = m.gt
+        elif isinstance(m, annotated_types.Ge):
+            bounds["ge"] = m.ge
+        elif isinstance(m, annotated_types.Lt):
+            bounds["lt"] = m.lt
+        elif isinstance(m, annotated_types.Le):
+            bounds["le"] = m.le
+        else:
+            raise TypeError(f"{section.__name__}.{key}: {m!r} is not a bound truth_field carries")
+    return Field(f.default if default is None else default, **bounds)
+
+
+class InsConfig(InsNoise):
+    """INS vertical specific-force error model (MODEL.md eq. 1-2)."""
+
     bias_rw_mps2_per_sqrt_s: float = Field(0.002, ge=0)  # random walk on da (0: constant, as the paper)
 
 
-class BaroConfig(_Section):
+class BaroConfig(BaroNoise):
     """Barometric altimeter error model (MODEL.md eq. 3-5)."""
 
-    # sigma_bb 0.2 m and the bias walk 0.02 m/sqrt(s): measured on 69 real
-    # flights with bench/estimator_real.py (BENCHMARKS.md, docs/error_models.md)
-    sigma_bb_m: float = Field(0.2, gt=0)  # RMS of the Gauss-Markov noise u
-    gamma_bb_per_s: float = Field(0.5, gt=0)  # its inverse correlation time
+    # the bias walk 0.02 m/sqrt(s): measured on 69 real flights with
+    # bench/estimator_real.py (BENCHMARKS.md, docs/error_models.md)
     bias_rw_m_per_sqrt_s: float = Field(0.02, ge=0)  # random walk on dH (0: constant, as the paper)
     # White noise on top of u, measured at run time from the sensor's own
     # samples (robust spread of second differences over white_window
@@ -57,13 +112,12 @@ class BaroConfig(_Section):
     white_window: int = Field(61, ge=5)
 
 
-class GnssConfig(_Section):
+class GnssConfig(GnssNoise):
     """GNSS vertical error: white noise (sigma_z_m, or the receiver's v_acc)
     plus a first-order Gauss-Markov error (gm_sigma_m, gm_tau_s), the slow
     wander of GNSS altitude (multipath, satellite geometry) seen on real
     flights. gm_sigma_m 0 turns the Gauss-Markov state off (paper mode)."""
 
-    sigma_z_m: float = Field(2.0, gt=0)  # vertical noise when v_acc is not used
     # On from the start in adaptive mode (paper mode: off). 4 m / 300 s gives the
     # median flight's baro-GNSS structure function (docs/error_models.md). The
     # state follows a slow GNSS ramp as it follows the wander: the ramp is the
@@ -75,8 +129,7 @@ class GnssConfig(_Section):
     v_acc_floor_m: float = Field(0.3, ge=0)  # never trust a receiver more than this
 
 
-class RangefinderConfig(_Section):
-    sigma_m: float = Field(0.05, gt=0)
+class RangefinderConfig(RangefinderNoise):
     # Height-proportional part of the noise (scale error, uneven ground): the
     # sigma used is sqrt(sigma_m^2 + (scale_sigma_frac * height)^2).
     scale_sigma_frac: float = Field(0.03, ge=0)

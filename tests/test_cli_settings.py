@@ -78,9 +78,10 @@ def test_emit_keys_apply_and_flags_win():
 def test_emit_sink_built_from_the_section_and_the_flags():
     (sink,) = emit_sinks(EMIT_CFG, {"emit": "udpout:127.0.0.1:9", "emit_sysid": 9, "allow_commands": True})
     try:
-        c = sink.cfg
+        c = sink.settings
         assert (c.sysid, c.compid, c.altitude_rate_hz, c.debug_values) == (9, 192, 2.0, True)
-        assert [(r.name, r.rate_hz) for r in c.message_rates] == [("ATTITUDE", 25.0)]
+        assert sink.config.emit is c and sink.config.monitor is EMIT_CFG.monitor  # the run's, the flags over its emit:
+        assert [(r.name, r.rate_hz) for r in sink.message_rates] == [("ATTITUDE", 25.0)]
     finally:
         sink.close(RunSummary())
 
@@ -89,7 +90,7 @@ def test_configured_rates_wait_for_allow_commands():
     # the section's message_rates are a standing choice, used only when commands are allowed
     (sink,) = emit_sinks(EMIT_CFG, {"emit": "udpout:127.0.0.1:9"})
     try:
-        assert sink.cfg.message_rates is None and not sink.cfg.allow_commands
+        assert sink.message_rates is None and not sink.allow_commands and sink.requester is None
     finally:
         sink.close(RunSummary())
 
@@ -136,8 +137,8 @@ def test_audit_takes_the_configured_recording(tmp_path):
 
 @pytest.mark.parametrize("kw,match", [
     ({"compid": 1}, "autopilot"),
-    ({"sysid": 0}, "emit: sysid"),
-    ({"sysid": 256}, "emit: sysid"),
+    ({"sysid": 0}, "emit.sysid"),
+    ({"sysid": 256}, "emit.sysid"),
     ({"altitude_rate_hz": float("nan")}, "altitude_rate_hz"),
     ({"altitude_rate_hz": 0.0}, "altitude_rate_hz"),
     ({"statustext_interval_s": float("inf")}, "statustext_interval_s"),
@@ -145,11 +146,16 @@ def test_audit_takes_the_configured_recording(tmp_path):
     ({"signing_link_id": 256}, "signing_link_id"),
     ({"command_attempts": 0}, "command_attempts"),
     ({"command_timeout_s": 0.0}, "command_timeout_s"),
-    ({"signing_key": b"short"}, "32 bytes"),
 ])
-def test_the_sink_config_refuses_what_the_section_refuses(kw, match):
-    from mavnav.sinks.mavlink_out import EmitConfig
-
+def test_the_emit_section_refuses_bad_values_by_name(kw, match):
+    # the sink takes this section (MavlinkOutSink(link, config)): no second set of rules
     with pytest.raises(ConfigError, match=match):
-        EmitConfig(**kw)
-    EmitConfig()  # the defaults pass
+        config_from_dict({"emit": kw})
+    config_from_dict({"emit": {}})  # the defaults pass
+
+
+def test_the_sink_refuses_a_signing_key_of_the_wrong_length():
+    from mavnav.sinks.mavlink_out import MavlinkOutSink
+
+    with pytest.raises(ConfigError, match="32 bytes"):
+        MavlinkOutSink(None, signing_secret=b"short", use_input_link=True)

@@ -110,10 +110,10 @@ def test_options_reach_the_wire(tmp_path):
                              "--allow-commands", "--request-rate", "attitude:25"])
         assert res.exit_code == 0, res.output
         (sink,) = store["sinks"]
-        cfg = sink.cfg
+        cfg = sink.settings
         assert (cfg.sysid, cfg.compid, cfg.altitude_rate_hz, cfg.debug_values, cfg.fusable) == (7, 192, 10.0, True, True)
-        assert [(r.name, r.rate_hz) for r in cfg.message_rates] == [("ATTITUDE", 25.0)]
-        assert cfg.allow_commands and sink.requester is not None
+        assert [(r.name, r.rate_hz) for r in sink.message_rates] == [("ATTITUDE", 25.0)]
+        assert sink.allow_commands and sink.requester is not None
         sink.start({})
         feed(sink, reports_every(0.02, 1.0))
         sink.close(RunSummary())

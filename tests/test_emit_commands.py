@@ -15,8 +15,8 @@ from mavnav.errors import ConfigError
 from mavnav.report import RunSummary
 from mavnav.config import config_from_dict
 from mavnav.sinks.mavlink_commands import needed_rates, parse_rate
-from mavnav.sinks.mavlink_out import EmitConfig, MavlinkOutSink
-from tests.support.emit import Peer, udp_sink
+from mavnav.sinks.mavlink_out import MavlinkOutSink
+from tests.support.emit import Peer, emit_config, udp_sink
 from tests.support.emit import R, autopilot_heartbeat, Autopilot, run_until
 
 pytestmark = [pytest.mark.integration]
@@ -29,8 +29,8 @@ ACCEPTED, TEMP, DENIED, UNSUPPORTED, IN_PROGRESS = (
 @pytest.mark.slow
 def test_requests_are_checked_retried_and_refusals_reported(caplog):
     ap_peer = Peer(sysid=1, compid=1)
-    rates = tuple(parse_rate(s) for s in ("HIGHRES_IMU:50", "ATTITUDE:40", "SCALED_PRESSURE:20", "GPS_RAW_INT:5",
-                                          "DISTANCE_SENSOR:10"))
+    specs = ("HIGHRES_IMU:50", "ATTITUDE:40", "SCALED_PRESSURE:20", "GPS_RAW_INT:5", "DISTANCE_SENSOR:10")
+    rates = tuple(parse_rate(s) for s in specs)
     ids = {r.name: r.msg_id for r in rates}
     ap = Autopilot(ap_peer, {
         ids["HIGHRES_IMU"]: [ACCEPTED],
@@ -39,7 +39,7 @@ def test_requests_are_checked_retried_and_refusals_reported(caplog):
         ids["GPS_RAW_INT"]: [TEMP, ACCEPTED],
         ids["DISTANCE_SENSOR"]: [(IN_PROGRESS, ACCEPTED)],
     })
-    sink = udp_sink(ap_peer, allow_commands=True, message_rates=rates, command_timeout_s=0.15, command_attempts=3)
+    sink = udp_sink(ap_peer, allow_commands=True, message_rates=specs, command_timeout_s=0.15, command_attempts=3)
     try:
         with caplog.at_level(logging.INFO, logger="mavnav.sinks.mavlink_out"):
             sink.start({})
@@ -115,12 +115,13 @@ def test_commands_on_the_input_link_use_the_sources_tap():
     ap = Autopilot(vehicle, {})
     link = mavutil.mavlink_connection("udpin:127.0.0.1:0")
     taps = []
-    rates = (parse_rate("HIGHRES_IMU:50"), parse_rate("ATTITUDE:50"))
+    specs = ("HIGHRES_IMU:50", "ATTITUDE:50")
+    rates = tuple(parse_rate(s) for s in specs)
     try:
         port = link.port.getsockname()[1]
         vehicle.send(autopilot_heartbeat(), ("127.0.0.1", port))
-        sink = MavlinkOutSink(None, EmitConfig(sysid=3, allow_commands=True, message_rates=rates,
-                                               command_timeout_s=0.2), use_input_link=True)
+        sink = MavlinkOutSink(None, emit_config(sysid=3, message_rates=specs, command_timeout_s=0.2),
+                              allow_commands=True, use_input_link=True)
 
         def pump():  # what the live source does with the replies: decode and hand them on
             seen = []
@@ -201,7 +202,7 @@ def test_input_link_without_a_tap_sends_no_command(caplog):
         deadline = time.monotonic() + 5
         while link.recv_match(type="HEARTBEAT", blocking=True, timeout=0.1) is None and time.monotonic() < deadline:
             pass
-        sink = MavlinkOutSink(None, EmitConfig(allow_commands=True), use_input_link=True)
+        sink = MavlinkOutSink(None, allow_commands=True, use_input_link=True)
         with caplog.at_level(logging.WARNING, logger="mavnav.sinks.mavlink_out"):
             sink.start({"link": link})
         assert any("link_tap" in r.getMessage() for r in caplog.records)

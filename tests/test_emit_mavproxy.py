@@ -26,11 +26,10 @@ from mavnav.ingest import LiveSource
 from mavnav.pipeline import run
 from mavnav.report import RunSummary
 from mavnav.sim import load_scenario, simulate
-from mavnav.sinks.mavlink_commands import parse_rate
-from mavnav.sinks.mavlink_out import EmitConfig, MavlinkOutSink
+from mavnav.sinks.mavlink_out import MavlinkOutSink
 from tests.support.emit import Autopilot
 from tests.support.live import LiveRun, free_udp_port, send_paced, tlog_frames
-from tests.support.emit import Peer, texts_of
+from tests.support.emit import Peer, emit_config, texts_of
 from tests.support.paths import SCENARIOS
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
@@ -103,11 +102,10 @@ def test_mavnav_behind_mavproxy_reaches_the_vehicle(ground, frames):
     vehicle: Peer = ground["vehicle"]
     ap = Autopilot(vehicle, {105: [mavlink2.MAV_RESULT_UNSUPPORTED]})
     source = LiveSource(f"udpin:127.0.0.1:{ground['live_in']}")
-    rates = (parse_rate("HIGHRES_IMU:50"), parse_rate("SCALED_PRESSURE:20"))
-    cfg = EmitConfig(allow_commands=True, message_rates=rates, command_timeout_s=0.5)
+    cfg = emit_config(message_rates=("HIGHRES_IMU:50", "SCALED_PRESSURE:20"), command_timeout_s=0.5)
     link = mavutil.mavlink_connection(f"udpout:127.0.0.1:{ground['emit_in']}", source_system=1,
                                       source_component=191)
-    sink = MavlinkOutSink(link, cfg, description="udpout to MAVProxy")
+    sink = MavlinkOutSink(link, cfg, allow_commands=True, description="udpout to MAVProxy")
     result = {}
     runner = threading.Thread(target=lambda: result.setdefault(
         "summary", run(source, Config(), [sink], info={"live": True})), daemon=True)

@@ -48,7 +48,7 @@ def test_wrong_key_files_are_refused_by_name(tmp_path, content, match):
 
 def _emit_signed(peers, key=KEY, link_id=7):
     for p in peers:
-        sink = udp_sink(p, signing_key=key, signing_link_id=link_id)
+        sink = udp_sink(p, signing_secret=key, signing_link_id=link_id)
         sink.start({})
         feed(sink, reports_every(0.02, 1.0))
         sink.alarm(event(1.0))
@@ -106,7 +106,7 @@ def test_signing_timestamps_increase_from_the_wall_clock():
 
 
 def test_key_of_wrong_length_is_refused():
-    from mavnav.sinks.mavlink_out import EmitConfig
+    from mavnav.sinks.mavlink_out import MavlinkOutSink
 
     with pytest.raises(ConfigError, match="32 bytes"):
-        EmitConfig(signing_key=os.urandom(16))
+        MavlinkOutSink(None, signing_secret=os.urandom(16), use_input_link=True)

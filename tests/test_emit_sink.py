@@ -18,8 +18,8 @@ from mavnav.cli.emit_options import open_link
 from mavnav.report import RunSummary
 from mavnav.samples import LinkLost, Reboot, ReferenceSet
 from mavnav.sinks.base import SinkSet
-from mavnav.sinks.mavlink_out import DEBUG_NAMES, EmitConfig, MavlinkOutSink
-from tests.support.emit import F32, Peer, event, feed, report, reports_every, texts_of, udp_sink
+from mavnav.sinks.mavlink_out import DEBUG_NAMES, MavlinkOutSink
+from tests.support.emit import F32, Peer, emit_config, event, feed, report, reports_every, texts_of, udp_sink
 
 pytestmark = [pytest.mark.integration]
 
@@ -59,7 +59,7 @@ def test_compid_of_the_autopilot_is_refused():
     from mavnav.errors import ConfigError
 
     with pytest.raises(ConfigError, match="autopilot"):
-        EmitConfig(compid=1)
+        emit_config(compid=1)
 
 
 # --------------------------------------------------------------------------- ALTITUDE
@@ -287,7 +287,7 @@ def test_emit_input_writes_back_to_the_live_link():
         deadline = time.monotonic() + 5
         while time.monotonic() < deadline and link.recv_match(type="HEARTBEAT", blocking=True, timeout=0.1) is None:
             pass
-        sink = MavlinkOutSink(None, EmitConfig(), use_input_link=True)
+        sink = MavlinkOutSink(None, use_input_link=True)
         sink.start({"link": link})
         feed(sink, reports_every(0.02, 0.5))
         assert vehicle.wait_for(lambda: len(vehicle.of("ALTITUDE", compid=191)) == 3)
@@ -301,7 +301,7 @@ def test_emit_input_writes_back_to_the_live_link():
 
 def test_emit_input_without_a_live_link_is_reported_and_dropped():
     summary = RunSummary()
-    sinks = SinkSet([MavlinkOutSink(None, EmitConfig(), use_input_link=True)], summary)
+    sinks = SinkSet([MavlinkOutSink(None, use_input_link=True)], summary)
     sinks.start({"mode": "adaptive"})
     assert not sinks.active
     assert "live input link" in summary.sink_failures["mavlink-out"]
@@ -341,8 +341,8 @@ def _tcp_server(port: int = 0) -> socket.socket:
 def test_tcp_peer_gone_is_reported_once_and_sending_resumes(caplog):
     srv = _tcp_server()
     port = srv.getsockname()[1]
-    c = EmitConfig()
-    sink = MavlinkOutSink(open_link(f"tcp:127.0.0.1:{port}", c.sysid, c.compid), c)
+    c = emit_config()
+    sink = MavlinkOutSink(open_link(f"tcp:127.0.0.1:{port}", c.emit.sysid, c.emit.compid), c)
     t = [0]
 
     def step(n=1):

@@ -7,12 +7,16 @@ import json
 import pytest
 import yaml
 from click.testing import CliRunner
+from pydantic import BaseModel, Field, ValidationError
 from pymavlink import mavutil
 
 from mavnav.cli import main
-from mavnav.config import SensorsConfig
+from mavnav.config import (
+    BaroNoise, FilterConfig, GnssNoise, InsNoise, RangefinderNoise, SensorsConfig, truth_field,
+)
 from mavnav.errors import ConfigError
 from mavnav.sim import load_scenario, read_truth_csv, scenario_from_dict
+from mavnav.sim.scenario import Scenario
 from tests.support.paths import REPO
 
 ROOT = REPO
@@ -27,13 +31,47 @@ def test_examples_exist_and_load():
         assert scn.name == p.stem
 
 
-def test_sensor_noise_names_mirror_the_filter_config():
-    filt = SensorsConfig().model_dump()
-    scn = scenario_from_dict(MIN).sensors.model_dump()
-    for section, keys in filt.items():
-        for key in ("sigma_a_mps2", "alpha_a_per_s", "sigma_bb_m", "gamma_bb_per_s", "sigma_z_m", "sigma_m"):
-            if key in keys:
-                assert key in scn[section], (section, key)
+# The filter's model of each sensor and the simulator's truth of it share their noise keys
+# (mavnav.config's *Noise sections): one key, unit and bound each, each side its own values.
+NOISE = {"ins": InsNoise, "baro": BaroNoise, "gnss": GnssNoise, "rangefinder": RangefinderNoise}
+
+
+@pytest.mark.parametrize("section", sorted(NOISE))
+def test_the_truth_and_the_model_share_their_noise_keys(section):
+    noise = NOISE[section]
+    model = SensorsConfig.model_fields[section].annotation
+    truth = Scenario.model_fields["sensors"].annotation.model_fields[section].annotation
+    assert issubclass(model, noise) and issubclass(truth, noise)
+    for key in noise.model_fields:
+        for value, model_ok, truth_ok in ((0.5, True, True), (-1.0, False, False),
+                                          (0.0, False, key.startswith("sigma"))):  # a simulated sensor may be noise-free
+            for cls, ok in ((model, model_ok), (truth, truth_ok)):
+                try:
+                    cls(**{key: value})
+                    assert ok, f"{cls.__name__}.{key} = {value} accepted"
+                except ValidationError:
+                    assert not ok, f"{cls.__name__}.{key} = {value} refused"
+
+
+def test_the_truth_keeps_its_own_values_and_only_its_keys():
+    truth, model = scenario_from_dict(MIN).sensors, SensorsConfig()
+    # the defaults differ: a simulator whose sensors equal the model by construction proves nothing
+    assert (truth.ins.sigma_a_mps2, truth.baro.sigma_bb_m, truth.gnss.sigma_z_m) != \
+        (model.ins.sigma_a_mps2, model.baro.sigma_bb_m, model.gnss.sigma_z_m)
+    assert truth.ins.gravity_mps2 == FilterConfig().gravity_mps2
+    # what only the model has is no key of the truth (nothing simulated would read it)
+    with pytest.raises(ConfigError, match="unknown key 'sensors.ins.bias_rw_mps2_per_sqrt_s'"):
+        scenario_from_dict(dict(MIN, sensors={"ins": {"bias_rw_mps2_per_sqrt_s": 0.0}}))
+    with pytest.raises(ConfigError, match="unknown key 'sensors.gnss.gm_sigma_m'"):
+        scenario_from_dict(dict(MIN, sensors={"gnss": {"gm_sigma_m": 1.0}}))
+
+
+def test_truth_field_carries_bounds_only():
+    class Odd(BaseModel):
+        x: float = Field(1.0, multiple_of=0.5)
+
+    with pytest.raises(TypeError, match="Odd.x"):
+        truth_field(Odd, "x")
 
 
 def _write(tmp_path, data, name="s.yaml"):

@@ -107,24 +107,12 @@ def emit_sinks(cfg: Config, flags: dict, *, live_input: Optional[bool] = None,
     ``--allow-commands``."""
     if flags.get("emit") is None:
         return make_emit_sinks(**flags, live_input=live_input, config=cfg, say=say)
-    s = emit_settings(cfg, flags)
+    settings = emit_settings(cfg, flags)
     allow = bool(flags.get("allow_commands", False))
-    return make_emit_sinks(
-        emit=flags["emit"],
-        emit_sysid=s.sysid,
-        emit_compid=s.compid,
-        altitude_rate=s.altitude_rate_hz,
-        statustext_interval=s.statustext_interval_s,
-        emit_debug=s.debug_values,
-        emit_fusable=s.fusable,
-        allow_commands=allow,
-        request_rate=s.message_rates if allow or "request_rate" in flags else (),
-        signing_key=s.signing_key,
-        signing_link_id=s.signing_link_id,
-        live_input=live_input,
-        config=cfg,
-        say=say,
-    )
+    if flags.get("request_rate") and not allow:
+        raise ConfigError("--request-rate needs --allow-commands")
+    config = cfg.model_copy(update={"emit": settings})
+    return _sinks(flags["emit"], config, allow, live_input=live_input, say=say)
 
 
 def _split_baud(connection: str):
@@ -179,10 +167,7 @@ def make_emit_sinks(
     the command timeout); ``say``: where command results are told (the
     console). Misspelt keywords raise ``TypeError`` (no ``**kwargs`` swallowing).
     """
-    from ..config import Config
-    from ..sinks.mavlink_commands import parse_rate
-    from ..sinks.mavlink_link import load_signing_key
-    from ..sinks.mavlink_out import EmitConfig, MavlinkOutSink
+    from ..config import Config, with_overrides
 
     config = config if config is not None else Config()
     if emit is None:
@@ -192,28 +177,35 @@ def make_emit_sinks(
         if stray:
             raise ConfigError(f"{', '.join(stray)} without --emit: nothing is transmitted without --emit")
         return []
-    emit = emit.strip()
     if request_rate and not allow_commands:
         raise ConfigError("--request-rate needs --allow-commands")
-    rates = tuple(parse_rate(s) for s in request_rate) if request_rate else None
-    cfg = EmitConfig(
-        sysid=emit_sysid,
-        compid=emit_compid,
-        altitude_rate_hz=altitude_rate,
-        statustext_interval_s=statustext_interval,
-        debug_values=emit_debug,
-        fusable=emit_fusable,
-        allow_commands=allow_commands,
-        message_rates=rates,
-        config=config,
-        signing_key=load_signing_key(signing_key) if signing_key else None,
-        signing_link_id=signing_link_id,
-        command_timeout_s=config.emit.command_timeout_s,
-        command_attempts=config.emit.command_attempts,
-    )
+    settings = with_overrides(config.emit, {
+        "sysid": emit_sysid, "compid": emit_compid, "altitude_rate_hz": altitude_rate,
+        "statustext_interval_s": statustext_interval, "debug_values": emit_debug, "fusable": emit_fusable,
+        "message_rates": tuple(request_rate), "signing_key": str(signing_key) if signing_key else None,
+        "signing_link_id": signing_link_id,
+    }, "emit")
+    return _sinks(emit, config.model_copy(update={"emit": settings}), allow_commands, live_input=live_input,
+                  say=say, clock=clock, wall_clock=wall_clock)
+
+
+def _sinks(emit: str, config: Config, allow_commands: bool, *, live_input: Optional[bool],
+           say: Optional[Callable[[str], None]], clock: Callable[[], float] = time.monotonic,
+           wall_clock: Callable[[], float] = time.time) -> List[Sink]:
+    """The sink sending to connection ``emit`` as ``config.emit`` says (the flags
+    already over it): the rates and the key checked before the link is opened."""
+    from ..sinks.mavlink_link import load_signing_key
+    from ..sinks.mavlink_out import MavlinkOutSink, requested_rates
+
+    settings = config.emit
+    emit = emit.strip()
+    if allow_commands:
+        requested_rates(settings)  # a bad NAME:HZ is refused before anything is opened
+    secret = load_signing_key(settings.signing_key) if settings.signing_key else None
+    sink_args = dict(allow_commands=allow_commands, signing_secret=secret, clock=clock, wall_clock=wall_clock, say=say)
     if emit == INPUT:
         if live_input is False:
             raise ConfigError("--emit input needs a live input link (`run`); use a connection string here")
-        return [MavlinkOutSink(None, cfg, use_input_link=True, clock=clock, wall_clock=wall_clock, say=say)]
-    link = open_link(emit, emit_sysid, emit_compid)
-    return [MavlinkOutSink(link, cfg, description=emit, clock=clock, wall_clock=wall_clock, say=say)]
+        return [MavlinkOutSink(None, config, use_input_link=True, **sink_args)]
+    link = open_link(emit, settings.sysid, settings.compid)
+    return [MavlinkOutSink(link, config, description=emit, **sink_args)]

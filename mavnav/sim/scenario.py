@@ -1,12 +1,15 @@
 """Scenario schema for the simulator: typed, frozen, unknown keys refused by name.
 
 A scenario names a trajectory, an autopilot profile (which messages, at what
-rates), the true sensor errors and a list of faults. Sensor noise parameters
-use the same names as the filter's :class:`mavnav.config.SensorsConfig`
-(``ins.sigma_a_mps2``, ``ins.alpha_a_per_s``, ``baro.sigma_bb_m``,
-``baro.gamma_bb_per_s``, ``gnss.sigma_z_m``, ``rangefinder.sigma_m``), so a
-scenario's sensor block reads like the filter's; the true biases and the
-extra realism (GNSS correlated error, rangefinder limits...) are added here.
+rates), the true sensor errors and a list of faults. The noise quantities the
+filter models too are the filter's own keys, inherited from the *Noise
+sections of :mod:`mavnav.config` (``ins.sigma_a_mps2``, ``ins.alpha_a_per_s``,
+``baro.sigma_bb_m``, ``baro.gamma_bb_per_s``, ``gnss.sigma_z_m``,
+``rangefinder.sigma_m``; ``ins.gravity_mps2`` is ``filter.gravity_mps2``'s),
+with the same bounds but the truth's own defaults, and a noise of 0 allowed
+(a noise-free sensor): the truth must stay free to differ from the model. The
+true biases and the extra realism (GNSS correlated error, rangefinder
+limits...) are added here.
 
 Times are *scenario time*: seconds of the first boot's vehicle clock
 (``time_boot_ms``), which continues as if no reboot happened. With the default
@@ -23,15 +26,20 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from ..config import (
     BaroConfig,
+    BaroNoise,
+    FilterConfig,
     GnssConfig,
+    GnssNoise,
     InsConfig,
+    InsNoise,
     RangefinderConfig,
+    RangefinderNoise,
     SensorsConfig,
     describe_error,
     read_yaml,
+    truth_field,
     validation_error,
 )
-from ..constants import G0_MPS2
 from ..errors import ConfigError
 from ..sensors import BARO_INS, GNSS, INPUT, RANGEFINDER, Sensor
 
@@ -117,7 +125,7 @@ TRAJECTORY_KINDS = ("landing", "hover", "steps")
 # ---------------------------------------------------------------- sensors
 
 
-class SimInsConfig(_Section):
+class SimInsConfig(InsNoise):
     """Strapdown IMU: MODEL.md eq. 1-2 on the vertical, noise on every axis.
 
     Per IMU message sample the noise is white with standard deviation
@@ -125,27 +133,27 @@ class SimInsConfig(_Section):
     nominal interval (the dimensionally consistent form of MODEL.md's erratum).
     """
 
-    sigma_a_mps2: float = Field(0.02, ge=0)
-    alpha_a_per_s: float = Field(1.0, gt=0)
+    sigma_a_mps2: float = truth_field(InsNoise, "sigma_a_mps2", 0.02, zero_ok=True)
+    alpha_a_per_s: float = truth_field(InsNoise, "alpha_a_per_s", 1.0)
     bias_up_mps2: float = 0.0  # da: constant bias of the vertical specific force
     body_bias_mps2: Tuple[float, float, float] = (0.0, 0.0, 0.0)  # extra FRD bias
     gyro_sigma_radps: float = Field(0.003, ge=0)
-    gravity_mps2: float = Field(G0_MPS2, gt=0)
+    gravity_mps2: float = truth_field(FilterConfig, "gravity_mps2")
 
 
-class SimBaroConfig(_Section):
+class SimBaroConfig(BaroNoise):
     """Barometer: ``H_baro = H + dH + u``, ``u`` first-order Gauss-Markov."""
 
-    sigma_bb_m: float = Field(0.5, ge=0)
-    gamma_bb_per_s: float = Field(1.0, gt=0)
+    sigma_bb_m: float = truth_field(BaroNoise, "sigma_bb_m", 0.5, zero_ok=True)
+    gamma_bb_per_s: float = truth_field(BaroNoise, "gamma_bb_per_s", 1.0)
     bias_m: float = 0.0  # dH
     temperature_c: float = 25.0
 
 
-class SimGnssConfig(_Section):
+class SimGnssConfig(GnssNoise):
     """GNSS altitude: white ``sigma_z_m`` plus a slow Gauss-Markov error."""
 
-    sigma_z_m: float = Field(0.8, ge=0)
+    sigma_z_m: float = truth_field(GnssNoise, "sigma_z_m", 0.8, zero_ok=True)
     correlated_sigma_m: float = Field(1.0, ge=0)
     correlated_tau_s: float = Field(300.0, gt=0)
     v_acc_m: Optional[float] = Field(None, gt=0)  # reported; default sqrt(white^2 + correlated^2)
@@ -155,7 +163,7 @@ class SimGnssConfig(_Section):
     time_base: Literal["boot", "unix"] = "boot"  # GPS_RAW_INT.time_usec
 
 
-class SimRangefinderConfig(_Section):
+class SimRangefinderConfig(RangefinderNoise):
     """Downward rangefinder over the ground (the reference elevation plus ``terrain``).
 
     A reading outside ``[min_m, max_m]`` is sent just outside the limits
@@ -170,7 +178,7 @@ class SimRangefinderConfig(_Section):
     alone.
     """
 
-    sigma_m: float = Field(0.05, ge=0)
+    sigma_m: float = truth_field(RangefinderNoise, "sigma_m", 0.05, zero_ok=True)
     min_m: float = Field(0.2, ge=0)
     max_m: float = Field(40.0, gt=0)
     quality: int = Field(100, ge=0, le=100)  # DISTANCE_SENSOR.signal_quality when in range

@@ -74,20 +74,19 @@ import logging
 import math
 import time
 from collections import Counter
-from dataclasses import dataclass, field
 from typing import Callable, Optional, Tuple
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from ..config import Config
+from ..config import Config, EmitSection
 from ..errors import ConfigError, InputError
 from ..home_frame import home_moved_text
 from ..report import CHANNEL_NAMES, PAIR_NAMES, AlarmEvent, EpochReport, RunSummary
 from ..sensors import BARO, GNSS, RANGEFINDER, SENSOR_SOURCES
 from ..samples import LinkLost, LinkRecovered, Notice, Reboot, ReferenceMoved, ReferenceSet
 from .base import Sink
-from .mavlink_commands import IntervalRequester, RateRequest, needed_rates
-from .mavlink_link import LinkWriter
+from .mavlink_commands import IntervalRequester, RateRequest, needed_rates, parse_rate
+from .mavlink_link import KEY_BYTES, LinkWriter
 from .mavlink_statustext import (
     StartupWatch, StatusTextLimiter, format_text, input_text, severity, split_text,
 )
@@ -121,39 +120,10 @@ _SYSTEM_STATUS = {
 _QUALITY = {"nominal": 100, "caution": 50, "unavailable": 50, "alarm": -1}
 
 
-@dataclass(frozen=True)
-class EmitConfig:
-    """What the MAVLink output sends and as whom. Bad values are refused by name,
-    by the rules of the configuration's ``emit:`` section (:class:`~mavnav.config.EmitSection`)."""
-
-    sysid: int = 1
-    compid: int = 191
-    altitude_rate_hz: float = 5.0
-    statustext_interval_s: float = 1.0  # per source, vehicle time
-    debug_values: bool = False
-    fusable: bool = False
-    allow_commands: bool = False
-    # None: the streams the monitor reads, at the rates ``config`` needs (mavlink_commands.needed_rates)
-    message_rates: Optional[Tuple[RateRequest, ...]] = None
-    config: Config = field(default_factory=Config)
-    signing_key: Optional[bytes] = None
-    signing_link_id: int = 0
-    command_timeout_s: float = 1.0
-    command_attempts: int = 3
-
-    def __post_init__(self) -> None:
-        from pydantic import ValidationError
-
-        from ..config import EmitSection, validation_error
-
-        try:
-            EmitSection(sysid=self.sysid, compid=self.compid, altitude_rate_hz=self.altitude_rate_hz,
-                        statustext_interval_s=self.statustext_interval_s, signing_link_id=self.signing_link_id,
-                        command_timeout_s=self.command_timeout_s, command_attempts=self.command_attempts)
-        except ValidationError as exc:
-            raise validation_error(exc, "emit") from None
-        if self.signing_key is not None and len(self.signing_key) != 32:
-            raise ConfigError("a MAVLink 2 signing key has 32 bytes")
+def requested_rates(emit: EmitSection) -> Optional[Tuple[RateRequest, ...]]:
+    """The message rates ``emit.message_rates`` asks for, parsed (bad ones refused
+    by name); None when it names none: the rates the configuration needs then."""
+    return tuple(parse_rate(s) for s in emit.message_rates) if emit.message_rates else None
 
 
 class _Ticker:
@@ -183,8 +153,10 @@ class MavlinkOutSink(Sink):
     def __init__(
         self,
         link=None,
-        config: Optional[EmitConfig] = None,
+        config: Optional[Config] = None,
         *,
+        allow_commands: bool = False,
+        signing_secret: Optional[bytes] = None,
         use_input_link: bool = False,
         description: Optional[str] = None,
         close_link: bool = True,
@@ -192,20 +164,31 @@ class MavlinkOutSink(Sink):
         wall_clock: Callable[[], float] = time.time,
         say: Optional[Callable[[str], None]] = None,
     ):
-        """``say``: where the command results are told to a person (the console)."""
+        """What is sent, and as whom: ``config.emit`` (the CLI gives the run's
+        configuration with the flags over its ``emit:`` section); the rest of
+        ``config`` gives the rates its time-to-alarm needs. Only with
+        ``allow_commands`` are commands sent (``config.emit.message_rates``, or
+        those rates). ``signing_secret``: the 32-byte MAVLink 2 signing key (the
+        CLI reads it from ``emit.signing_key``'s file); None: unsigned.
+        ``say``: where the command results are told to a person (the console)."""
         if (link is None) != use_input_link:
             raise ValueError("give a link, or use_input_link=True (not both)")
-        self.cfg = config if config is not None else EmitConfig()
+        if signing_secret is not None and len(signing_secret) != KEY_BYTES:
+            raise ConfigError(f"a MAVLink 2 signing key has {KEY_BYTES} bytes")
+        self.config = config if config is not None else Config()
+        self.settings = cfg = self.config.emit
+        self.allow_commands = allow_commands
+        #: with allow_commands: the rates asked for, or None for those the configuration needs
+        self.message_rates = requested_rates(cfg) if allow_commands else None
         self.use_input_link = use_input_link
         self.description = description or ("input link" if use_input_link else str(link))
         self._link = link
         self._close_link = close_link and not use_input_link
         self.clock = clock
-        cfg = self.cfg
         self._mav = mavlink2.MAVLink(None, srcSystem=cfg.sysid, srcComponent=cfg.compid)
-        if cfg.signing_key is not None:
+        if signing_secret is not None:
             sg = self._mav.signing
-            sg.secret_key = bytes(cfg.signing_key)
+            sg.secret_key = bytes(signing_secret)
             sg.sign_outgoing = True
             sg.link_id = cfg.signing_link_id
             # 10 us units since 2015-01-01 (MAVLink 2 signing), then +1 per frame
@@ -218,8 +201,8 @@ class MavlinkOutSink(Sink):
         self._alt = _Ticker(int(round(1e6 / cfg.altitude_rate_hz)))
         self.say = say
         self.requester: Optional[IntervalRequester] = None
-        if cfg.allow_commands and (cfg.message_rates is None or len(cfg.message_rates) > 0):
-            plan = cfg.message_rates if cfg.message_rates is not None else self._plan_rates
+        if allow_commands:
+            plan = self.message_rates if self.message_rates is not None else self._plan_rates
             self.requester = IntervalRequester(
                 plan, (cfg.sysid, cfg.compid),
                 timeout_s=cfg.command_timeout_s, attempts=cfg.command_attempts, on_result=self._on_result,
@@ -300,11 +283,11 @@ class MavlinkOutSink(Sink):
             self._send(self._heartbeat(_SYSTEM_STATUS.get(report.overall, mavlink2.MAV_STATE_ACTIVE)))
         if self._alt(boot, t_us):
             self._send(self._altitude(report))
-            if self.cfg.debug_values:
+            if self.settings.debug_values:
                 for name, value in self._debug_values(report):
                     self._send(mavlink2.MAVLink_named_value_float_message(
                         (t_us // 1000) & 0xFFFFFFFF, name.encode("ascii"), value))
-            if self.cfg.fusable:
+            if self.settings.fusable:
                 self._send(self._odometry(report))
         if self.requester is not None:
             self._service_commands()
@@ -367,7 +350,7 @@ class MavlinkOutSink(Sink):
         log.log(level, "MAVLink output: %s", text)
 
     def _plan_rates(self, heartbeat) -> Tuple[RateRequest, ...]:
-        rates = needed_rates(self.cfg.config, heartbeat.autopilot)
+        rates = needed_rates(self.config, heartbeat.autopilot)
         self._tell(logging.INFO, f"asking the autopilot {heartbeat.get_srcSystem()}/{heartbeat.get_srcComponent()} "
                                  "for the input rates the time-to-alarm needs: "
                                  + ", ".join(f"{r.name} {r.rate_hz:g} Hz" for r in rates))

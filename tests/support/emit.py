@@ -18,7 +18,8 @@ from mavnav.report import (
     CHANNEL_NAMES, PAIR_NAMES, SOURCES, AlarmEvent, ChannelReport, EpochReport, PairReport, SourceStatus,
 )
 from mavnav.sinks.base import Sink
-from mavnav.sinks.mavlink_out import EmitConfig, MavlinkOutSink
+from mavnav.config import Config, config_from_dict
+from mavnav.sinks.mavlink_out import MavlinkOutSink
 
 
 F32 = np.float32
@@ -181,9 +182,17 @@ def reports_every(dt_s: float, duration_s: float, t0_s: float = 0.0, **kw) -> Li
     return [report(int(round((t0_s + k * dt_s) * 1e6)), h=10.0 + 0.01 * k, **kw) for k in range(n)]
 
 
-def udp_sink(peer: Peer, **cfg) -> MavlinkOutSink:
-    c = EmitConfig(**cfg)
-    return MavlinkOutSink(open_link(peer.url, c.sysid, c.compid), c, description=peer.url)
+def emit_config(**emit) -> Config:
+    """The default configuration with these keys in its ``emit:`` section (refused as a file's would be)."""
+    return config_from_dict({"emit": emit})
+
+
+def udp_sink(peer: Peer, *, allow_commands: bool = False, signing_secret: Optional[bytes] = None,
+             **emit) -> MavlinkOutSink:
+    """A sink aimed at ``peer``, sending as the ``emit:`` keys given say."""
+    config = emit_config(**emit)
+    return MavlinkOutSink(open_link(peer.url, config.emit.sysid, config.emit.compid), config,
+                          allow_commands=allow_commands, signing_secret=signing_secret, description=peer.url)
 
 
 R = mavlink2
