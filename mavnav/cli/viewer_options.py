@@ -421,8 +421,9 @@ def _rerun_sink(found: _Targets, rr, application_id: str, live: bool, window_s: 
     rec = rr.RecordingStream(application_id, recording_id=uuid.uuid4())
     rec.set_sinks(*(rr_sink for rr_sink, _ in found.targets))
     watched = [target for _, target in found.targets if target is not None]
-    sink = RerunSink(rec, live=live, targets=watched, has_file=len(watched) < len(found.targets),
-                     window_s=window_s, live_batch_s=live_batch_s, on_close=found.on_close)
+    has_file = any(target is None for _, target in found.targets)
+    sink = RerunSink(rec, live=live, targets=watched, has_file=has_file, window_s=window_s,
+                     live_batch_s=live_batch_s, on_close=found.on_close)
     sink.page_url = found.page_url  # type: ignore[attr-defined]
     sink.processes = found.processes  # type: ignore[attr-defined]
     return sink
