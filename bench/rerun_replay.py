@@ -10,7 +10,9 @@ once, then run through :func:`mavnav.pipeline.run` (the fold ``replay`` and
   (``--rrd FILE --connect PORT``; a ``rerun --serve-grpc`` child on
   127.0.0.1 that nobody watches).
 
-The sink's cost is the time over the monitor alone, per epoch.
+The sink's cost is the time over the monitor alone, per epoch: wall clock,
+and the process's CPU time (every thread: Rerun encodes and writes in its
+own), the steadier of the two on a shared machine.
 
     .venv/bin/python bench/rerun_replay.py [--minutes 2] [--repeat 3]
 """
@@ -34,13 +36,14 @@ from mavnav.ingest import TlogSource  # noqa: E402
 from mavnav.pipeline import run  # noqa: E402
 
 
-def timed_run(samples: list, cfg, sinks: list) -> tuple[float, int]:
-    t0 = time.perf_counter()
+def timed_run(samples: list, cfg, sinks: list) -> tuple[float, float, int]:
+    """(wall s, CPU s, epochs) of one run, the sinks closed."""
+    t0, c0 = time.perf_counter(), time.process_time()
     res = run(iter(samples), cfg, sinks, info={"source": "bench", "live": False})
-    elapsed = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     if res.sink_failures:
         raise SystemExit(f"sinks failed: {res.sink_failures}")
-    return elapsed, res.epochs
+    return wall, cpu, res.epochs
 
 
 def main() -> None:
@@ -68,17 +71,22 @@ def main() -> None:
                 "rrd + viewer": lambda: make_viewer_sinks(connect=str(port), rrd=str(Path(tmp) / "v.rrd"), live=False),
             }
             best: dict[str, float] = {}
+            best_cpu: dict[str, float] = {}
             epochs = 0
             for _ in range(args.repeat):
                 for name, sinks in kinds.items():
-                    elapsed, epochs = timed_run(samples, cfg, sinks())
-                    best[name] = min(best.get(name, elapsed), elapsed)
+                    wall, cpu, epochs = timed_run(samples, cfg, sinks())
+                    best[name] = min(best.get(name, wall), wall)
+                    best_cpu[name] = min(best_cpu.get(name, cpu), cpu)
         finally:
             server.stop()
     print(f"log: {args.minutes:g} min simulated, {len(samples)} samples, {epochs} epochs")
     for name, t in best.items():
-        extra = "" if name == "alone" else f"  sink {(t - best['alone']) / epochs * 1e6:6.1f} us per epoch"
-        print(f"{name:<14} best of {args.repeat}: {t:6.2f} s  ({len(samples) / t:8.0f} samples/s){extra}")
+        cpu = best_cpu[name]
+        extra = "" if name == "alone" else (f"  sink {(t - best['alone']) / epochs * 1e6:6.1f} us wall, "
+                                            f"{(cpu - best_cpu['alone']) / epochs * 1e6:6.1f} us CPU per epoch")
+        print(f"{name:<14} best of {args.repeat}: {t:6.2f} s wall, {cpu:6.2f} s CPU "
+              f"({len(samples) / t:6.0f} samples/s){extra}")
     print(f"load average after: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 
