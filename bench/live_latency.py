@@ -16,11 +16,13 @@ p99 moves by a factor of two with the other processes):
 * live sinks: the Rerun web viewer as ``run --viewer web`` starts it (its
   gRPC server in this process, live batches, nobody watching) and MAVLink
   output as ``run --emit udpout:127.0.0.1:PORT`` (ALTITUDE at 5 Hz,
-  STATUSTEXT on alarms, the debug values too), plus the console printer.
+  STATUSTEXT on alarms, the debug values too), plus the console printer;
+  with ``--rrd``, the recording also saved to an ``.rrd`` (``run --viewer
+  web --rrd FILE``).
 
 Goal (issue 15): p99 under 1 ms with the viewer and MAVLink output on.
 
-    .venv/bin/python bench/live_latency.py [--minutes 2] [--repeat 3]
+    .venv/bin/python bench/live_latency.py [--minutes 2] [--repeat 3] [--rrd]
 """
 
 from __future__ import annotations
@@ -74,6 +76,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--minutes", type=float, default=2.0)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--rrd", action="store_true", help="also save the recording to an .rrd")
     args = ap.parse_args()
     print("command: python bench/live_latency.py " + " ".join(sys.argv[1:]))
     print(f"load average before: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
@@ -93,7 +96,8 @@ def main() -> None:
             rx.bind(("127.0.0.1", 0))
             rx.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
             rx.setblocking(False)
-            sinks = make_viewer_sinks(viewer="web", live=True, web_port=free_port(), grpc_port=free_port(),
+            rrd = str(Path(tmp) / "live.rrd") if args.rrd else None
+            sinks = make_viewer_sinks(viewer="web", rrd=rrd, live=True, web_port=free_port(), grpc_port=free_port(),
                                       viewer_hold=False, echo=lambda text: None)
             sinks += make_emit_sinks(emit=f"udpout:127.0.0.1:{rx.getsockname()[1]}", emit_debug=True,
                                      live_input=True, config=cfg, say=lambda text: None)
@@ -106,7 +110,7 @@ def main() -> None:
             except BlockingIOError:
                 pass
             rx.close()
-            rows["live"].append(summary("live: Rerun web viewer + MAVLink out", live))
+            rows["live"].append(summary(f"live: Rerun web viewer{' + .rrd' if rrd else ''} + MAVLink out", live))
             print(f"  ({res.epochs} epochs; MAVLink out: {received} bytes received; "
                   f"sinks failed: {res.sink_failures or 'none'})")
     b = {k: statistics.median(r[k] for r in rows["base"]) for k in ("p50", "p99")}

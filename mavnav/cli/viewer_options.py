@@ -413,18 +413,17 @@ def _add_connected_viewer(found: _Targets, rr, connect: str, echo: Callable[[str
 
 
 def _rerun_sink(found: _Targets, rr, application_id: str, live: bool, window_s: float, live_batch_s: float):
-    """One :class:`RerunSink` over a recording stream per target, all with one recording id."""
+    """One :class:`RerunSink` over one recording stream that sends to every target (Rerun's ``set_sinks``)."""
     import uuid
 
-    from ..sinks.rerun_sink import Output, RerunSink
+    from ..sinks.rerun_sink import RerunSink
 
-    recording_id = uuid.uuid4()
-    outputs = []
-    for rr_sink, target in found.targets:
-        rec = rr.RecordingStream(application_id, recording_id=recording_id)
-        rec.set_sinks(rr_sink)
-        outputs.append(Output(rec, target))
-    sink = RerunSink(outputs, live=live, window_s=window_s, live_batch_s=live_batch_s, on_close=found.on_close)
+    rec = rr.RecordingStream(application_id, recording_id=uuid.uuid4())
+    rec.set_sinks(*(rr_sink for rr_sink, _ in found.targets))
+    watched = [target for _, target in found.targets if target is not None]
+    has_file = any(target is None for _, target in found.targets)
+    sink = RerunSink(rec, live=live, targets=watched, has_file=has_file, window_s=window_s,
+                     live_batch_s=live_batch_s, on_close=found.on_close)
     sink.page_url = found.page_url  # type: ignore[attr-defined]
     sink.processes = found.processes  # type: ignore[attr-defined]
     return sink

@@ -1,7 +1,7 @@
 """Rerun viewer sink: every height, residual, threshold and alarm on one
 vehicle-time axis, live during a flight or scrubbing through a log.
 
-The sink writes to explicit :class:`rerun.RecordingStream` objects that the
+The sink writes to one explicit :class:`rerun.RecordingStream` that the
 CLI edge (:mod:`mavnav.cli.viewer_options`) has connected to its targets (a
 spawned viewer, a web viewer, a running viewer, an ``.rrd`` file); it never
 touches Rerun's global recording. What goes where is listed in
@@ -32,9 +32,11 @@ does not show (:func:`raw_used`). The pilot's readout (``pilot/readout``) is
 written every ``readout_interval_s`` of vehicle time and at every change of
 a source's or the overall state (:func:`readout_markdown`).
 
-Outputs. Each target (an ``.rrd`` file, a viewer) has its own recording
-stream with the same recording id, so that a viewer that goes away can be
-let go of without touching the file.
+Outputs. The stream writes to every target at once with Rerun's own
+multi-sink (``set_sinks``): the chunks are made once for the file and the
+viewers. A viewer that goes away stays one of the stream's sinks (Rerun
+drops what it can no longer send there; replacing the sinks would reopen,
+and so empty, the ``.rrd``).
 
 Failures. Logging never stops the monitor. Rerun itself does not raise on a
 viewer that goes away, so the sink checks its viewers (at most once a
@@ -50,9 +52,8 @@ from __future__ import annotations
 import logging
 import math
 import re
-from collections import deque
-import threading
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Callable, Optional, Sequence
 
@@ -134,54 +135,13 @@ class BootClock:
 
 
 # --------------------------------------------------------------------------
-# Outputs: one recording stream per target, written together
-
-
-@dataclass
-class Output:
-    """One place the recording goes: an ``.rrd`` file (``target`` None) or a
-    viewer / gRPC server that can go away (``target`` set).
-
-    Every output has its own :class:`rerun.RecordingStream` (same application
-    and recording id), so that a viewer that goes away can be let go of
-    without touching the file.
-    """
-
-    rec: rr.RecordingStream
-    target: Optional["ViewerTarget"] = None
-
-
-class _Fanout:
-    """The few RecordingStream calls the sink makes, on every live output."""
-
-    def __init__(self, recs: Sequence[rr.RecordingStream]):
-        self.recs = list(recs)
-
-    def remove(self, rec: rr.RecordingStream) -> None:
-        if rec in self.recs:
-            self.recs.remove(rec)
-
-    def set_time(self, timeline: str, **kw) -> None:
-        for rec in self.recs:
-            rec.set_time(timeline, **kw)
-
-    def log(self, entity: str, archetype, static: bool = False) -> None:
-        for rec in self.recs:
-            rec.log(entity, archetype, static=static)
-
-    def send_columns(self, entity: str, indexes, columns) -> None:
-        for rec in self.recs:
-            rec.send_columns(entity, indexes=indexes, columns=columns)
-
-
-# --------------------------------------------------------------------------
 # Writers: rows (live) or buffered columns (replay)
 
 
 class _RowWriter:
     """Logs every row at once (live)."""
 
-    def __init__(self, rec: _Fanout):
+    def __init__(self, rec: rr.RecordingStream):
         self.rec = rec
 
     def _at(self, ns: int) -> None:
@@ -230,7 +190,7 @@ class _ColumnWriter:
     queue is emptied before the next batch is queued, and :meth:`flush`
     (an alarm, close) sends everything at once."""
 
-    def __init__(self, rec: _Fanout, batch_rows: int, every_ns: Optional[int] = None):
+    def __init__(self, rec: rr.RecordingStream, batch_rows: int, every_ns: Optional[int] = None):
         self.rec = rec
         self.batch_rows = batch_rows
         self.every_ns = every_ns
@@ -385,22 +345,24 @@ class ViewerTarget:
 
 
 class RerunSink(Sink):
-    """Logs epochs, alarms and input events to Rerun recordings.
+    """Logs epochs, alarms and input events to a Rerun recording.
 
-    Each :class:`Output` has its recording stream already connected (a file,
-    a gRPC server); outputs with a ``target`` are viewers to watch. After
-    every viewer is gone and there is no file, logging stops. ``on_close``
-    callbacks run after the recordings are flushed (e.g. keep a web viewer
-    serving).
+    ``rec`` has its sinks already set (an ``.rrd`` file, gRPC servers);
+    ``targets`` are the viewers among them to watch, ``has_file`` says an
+    ``.rrd`` is one of them. After every viewer is gone and there is no
+    file, logging stops. ``on_close`` callbacks run after the recording is
+    flushed (e.g. keep a web viewer serving).
     """
 
     name = "rerun"
 
     def __init__(
         self,
-        outputs: Sequence[Output],
+        rec: rr.RecordingStream,
         *,
         live: bool,
+        targets: Sequence["ViewerTarget"] = (),
+        has_file: bool = False,
         window_s: float = 30.0,
         batch_rows: int = 200_000,
         live_batch_s: float = 0.25,
@@ -412,22 +374,23 @@ class RerunSink(Sink):
         """``live_batch_s``: live runs send every this many seconds of vehicle
         time (0: every row at once); ``batch_rows``: most rows buffered;
         ``readout_interval_s``: the pilot's readout between state changes."""
-        self.outputs = list(outputs)
+        self.rec = rec
+        self.targets = list(targets)
+        self.has_file = has_file
         self.live = live
         self.window_s = window_s
         self.check_interval_s = check_interval_s
         self.flush_timeout_s = flush_timeout_s
         self.on_close = list(on_close)
-        self.out = _Fanout([o.rec for o in self.outputs])
         self.clock = BootClock()
         if not live:
-            self.writer = _ColumnWriter(self.out, batch_rows)
+            self.writer = _ColumnWriter(rec, batch_rows)
         elif live_batch_s > 0:
-            self.writer = _ColumnWriter(self.out, batch_rows, every_ns=int(live_batch_s * NS_PER_S))
+            self.writer = _ColumnWriter(rec, batch_rows, every_ns=int(live_batch_s * NS_PER_S))
         else:
-            self.writer = _RowWriter(self.out)
+            self.writer = _RowWriter(rec)
         self._urgent = False
-        self.enabled = bool(self.outputs)
+        self.enabled = bool(self.targets) or has_file
         self._styled: set[str] = set()
         self._states: dict[str, str] = {}
         self._rates = _Rates()
@@ -439,25 +402,16 @@ class RerunSink(Sink):
         self._readout_states: Optional[tuple] = None  # the states it showed
         self._raw_pending: list[tuple[int, int, int, str, float]] = []  # (boot, t_us, ns, sensor, height)
 
-    @property
-    def targets(self) -> list["ViewerTarget"]:
-        return [o.target for o in self.outputs if o.target is not None]
-
-    @property
-    def has_file(self) -> bool:
-        return any(o.target is None for o in self.outputs)
-
     # -- setup -------------------------------------------------------------
 
     def start(self, info: dict) -> None:
-        blueprint = bp.blueprint(self.live, self.window_s)
+        rec = self.rec
+        rec.set_log_tick_enabled(False)
+        rec.set_log_time_enabled(False)
         source = info.get("source")
-        for o in self.outputs:
-            o.rec.set_log_tick_enabled(False)
-            o.rec.set_log_time_enabled(False)
-            if source:
-                o.rec.send_recording_name(f"mavnav: {source}")
-            o.rec.send_blueprint(blueprint, make_active=True, make_default=True)
+        if source:
+            rec.send_recording_name(f"mavnav: {source}")
+        rec.send_blueprint(bp.blueprint(self.live, self.window_s), make_active=True, make_default=True)
         for entity, archetype in bp.series_styles():
             self._style(entity, archetype)
         self._check_targets(force=True)
@@ -465,7 +419,7 @@ class RerunSink(Sink):
     def _style(self, entity: str, archetype) -> None:
         if entity not in self._styled:
             self._styled.add(entity)
-            self.out.log(entity, archetype, static=True)
+            self.rec.log(entity, archetype, static=True)
 
     # -- viewer health -----------------------------------------------------
 
@@ -474,29 +428,27 @@ class RerunSink(Sink):
         if not force and now < self._next_check:
             return
         self._next_check = now + self.check_interval_s
-        for o in self.outputs:
-            if o.target is None or o.target.lost is not None:
+        for target in self.targets:
+            if target.lost is not None:
                 continue
             try:
-                why = o.target.check()
+                why = target.check()
             except Exception as exc:  # a broken probe counts as a lost viewer
                 why = f"{type(exc).__name__}: {exc}"
             if why is not None:
-                self._lose(o, why)
+                self._lose(target, why)
 
-    def _lose(self, o: Output, why: str) -> None:
-        """Report a viewer gone (once) and let go of its recording stream."""
-        o.target.lost = why
+    def _lose(self, target: "ViewerTarget", why: str) -> None:
+        """Report a viewer gone (once); stop logging when nothing is left to write to."""
+        target.lost = why
         log.warning(
             "rerun: %s is gone (%s) at vehicle time %.3f s; the monitor goes on without it%s",
-            o.target.description,
+            target.description,
             why,
             self.clock.now_ns / NS_PER_S,
             " (the .rrd file is still written)" if self.has_file else "",
         )
-        self.out.remove(o.rec)
-        _let_go(o.rec)
-        if not self.out.recs:
+        if not self.has_file and all(t.lost is not None for t in self.targets):
             self.enabled = False
 
     @property
@@ -644,36 +596,18 @@ class RerunSink(Sink):
                 self._judge_raw(None)
                 self.writer.flush()
             self._check_targets(force=True)
-            for o in self.outputs:
-                if o.rec not in self.out.recs:
-                    continue
-                try:
-                    o.rec.flush(timeout_sec=self.flush_timeout_s)
-                except Exception as exc:  # a viewer that does not take the data
-                    if o.target is not None:
-                        self._lose(o, f"{type(exc).__name__}: {exc}")
-                        continue
-                    log.warning("rerun: could not flush the recording (%s)", exc)
-                o.rec.disconnect()
+            try:
+                self.rec.flush(timeout_sec=self.flush_timeout_s)
+            except Exception as exc:  # a sink that does not take the data: a viewer gone, said once
+                if not self.targets or any(t.lost is None for t in self.targets):
+                    log.warning("rerun: could not flush the recording (%s: %s)", type(exc).__name__, exc)
+            self.rec.disconnect()
         finally:
             for callback in self.on_close:
                 try:
                     callback()
                 except Exception as exc:
                     log.warning("rerun: after close: %s: %s", type(exc).__name__, exc)
-
-
-def _let_go(rec: rr.RecordingStream) -> None:
-    """Disconnect a lost viewer's stream without waiting for it (rerun waits
-    a few seconds for a server that is gone)."""
-
-    def disconnect() -> None:
-        try:
-            rec.disconnect()
-        except Exception:
-            pass
-
-    threading.Thread(target=disconnect, name="mavnav-rerun-let-go", daemon=True).start()
 
 
 # --------------------------------------------------------------------------
@@ -791,5 +725,5 @@ def alarm_text(e: AlarmEvent) -> str:
     return f"{text}: {e.reason}" if e.reason else text
 
 
-__all__ = ["RerunSink", "Output", "ViewerTarget", "BootClock", "epoch_rows", "epoch_states", "alarm_text", "raw_used",
+__all__ = ["RerunSink", "ViewerTarget", "BootClock", "epoch_rows", "epoch_states", "alarm_text", "raw_used",
            "readout_markdown"]
