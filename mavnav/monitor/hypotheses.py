@@ -481,7 +481,10 @@ class HypothesisLogic:
     def _doppler_verdict(self, t: int) -> Optional[Verdict]:
         """The GNSS altitude against its own Doppler velocity
         (:mod:`.doppler`): a failure implicates the GNSS alone; a pass rules
-        nothing out (a fault in position and velocity together passes it)."""
+        nothing out (a fault in position and velocity together passes it).
+        Its size as the GNSS would make it: none that another test's pass can
+        rule out, as the drift test's (the receiver disagrees with itself; and
+        its innovations cannot clear a ramp the Gauss-Markov state follows)."""
         d = self.doppler
         if (not self.f.doppler_check or "gnss" in self.excluded or self._warm("gnss", t)
                 or d.last_us is None or t - d.last_us > self.stale_us[GNSS] or d.last_e_m != d.last_e_m):
@@ -490,7 +493,8 @@ class HypothesisLogic:
         e = d.last_e_m
         txt = (f"GNSS altitude moved {e:+.2f} m against its own Doppler velocity over "
                f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m)" if abs(e) > self.m.suspect_frac * thr else "")
-        return self._graded("GNSS/Doppler", abs(e), thr, self.doppler_ex, t, frozenset(("gnss",)), txt)
+        return self._graded("GNSS/Doppler", abs(e), thr, self.doppler_ex, t, frozenset(("gnss",)), txt,
+                            sizes={"gnss": 0.0})
 
     def _graded(self, test: str, stat: float, thr: float, ex, t: int, implicates: frozenset, txt: str,
                 clears: frozenset = frozenset(), fail_scale_m: Optional[float] = None, sizes: Optional[dict] = None,
