@@ -29,7 +29,7 @@ from typing import Optional
 
 import numpy as np
 
-from .channel import (AUX_GB, CHANNELS, DH, GB, N_STATES, EpochInputs, Model, _check_finite,
+from .channel import (AUX_GB, CHANNELS, DH, GB, N_STATES, VZ, EpochInputs, Model, _check_finite,
                       gnss_gauss_markov, initial_state)
 from .jit import njit
 
@@ -429,6 +429,12 @@ class ChannelBank:
         for j in range(N_CH):
             if j != c:
                 self._set_cross(c, j, self.P[src].copy() if j == src else self.cross(src, j).copy())
+
+    def open_speed(self, c: int, var_mps2: float) -> None:
+        """Channel ``c``'s vertical speed made less certain by an independent
+        ``var_mps2`` (its cross-covariances unchanged: an added independent
+        error), so its own sensor can set it again."""
+        self.P[c, VZ, VZ] += var_mps2
 
     def rebase_baro_bias(self, c: int, baro_m: float, noise_var_m2: float) -> None:
         """Channel ``c`` takes its baro bias from one baro sample and its own

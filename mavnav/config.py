@@ -402,6 +402,13 @@ class MonitorConfig(_Section):
     # from the baro+INS channel when the sensor returns (it never gates out its
     # own sensor after coasting, and a rangefinder back in range finds its ground).
     coast_reinit_s: float = Field(3.0, gt=0)
+    # An aux channel that ran with a baro the monitor then excludes carries what
+    # that baro's fault pulled into its vertical speed before the fault was
+    # caught (a 0.5 m/s ramp, several seconds): its speed is made this much
+    # less certain (1 sigma, m/s), so that it settles on its own sensor
+    # (else its innovations drift as the pulled speed runs out, and the
+    # healthy sensor is blamed next).
+    baro_exclusion_vel_sigma_mps: float = Field(1.0, ge=0)
     # Ramp onset against the INS (mavnav/monitor/kink.py): over this window, a
     # kink of aux - baro with |z| past kink_min_z (its onset) is pinned on the
     # aux sensor or the baro by whose height bent against the INS, when their

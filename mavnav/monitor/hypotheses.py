@@ -916,11 +916,12 @@ class HypothesisLogic:
             return None
         return float(num[0] / den[0]), self.kink_sd[key].sd / math.sqrt(float(den[0]))
 
-    def _kink_verdicts(self, t: int, aux, drift: Optional[Verdict]) -> list[Verdict]:
+    def _kink_verdicts(self, t: int, aux, gnss_more: tuple) -> list[Verdict]:
         """For an aux test (the sensor's innovations; for the GNSS also its
-        drift against the baro) that implicates its sensor and the baro: which
-        of the two bent against the INS (a pass that rules the other out), if
-        the flight's own kink scatter lets the INS tell."""
+        drift against the baro and the baro against its Doppler) that
+        implicates its sensor and the baro: which of the two bent against the
+        INS (a pass that rules the other out), if the flight's own kink
+        scatter lets the INS tell."""
         m = self.m
         out = []
         if "baro_ins" in self.excluded:
@@ -928,7 +929,7 @@ class HypothesisLogic:
         ts = t * 1e-6
         for v, (_, name) in zip(aux, AUX):
             if name == "gnss" and (v is None or v.level == "pass"):
-                v = drift
+                v = next((w for w in gnss_more if w is not None and w.level != "pass"), None)
             if v is None or v.level == "pass" or "baro" not in v.implicates:
                 continue
             keys = (f"{name}-baro", f"{name}-ins", "baro-ins")
@@ -1034,11 +1035,12 @@ class HypothesisLogic:
         self.ins_doubt = any(v is not None and v.level != "pass" for v in ins_tests)
         aux = (self._aux_verdict(GNSS, "gnss", t), self._aux_verdict(RNG, "rangefinder", t))
         drift = self._drift_verdict(t)
+        baro_doppler = self._baro_doppler_verdict(t)
         verdicts = [v for v in (*aux, *ins_tests, self._raw_verdict(), envelope, self._doppler_verdict(t),
-                                self._baro_doppler_verdict(t), drift)
+                                baro_doppler, drift)
                     if v is not None] + self._level_verdicts(t)
         if self.f.kink_isolation and self.slow_imu_hz is None:  # the INS witnesses the kinks
-            verdicts += self._kink_verdicts(t, aux, drift)
+            verdicts += self._kink_verdicts(t, aux, (drift, baro_doppler))
         return verdicts, aux
 
     def _slow_ins(self, v: Optional[Verdict]) -> Optional[Verdict]:
@@ -1164,7 +1166,11 @@ class HypothesisLogic:
         self.consistent_since[name] = None
         if name == "baro_ins":
             self.baro_excluded_us = t
-            # a faulty baro is taken out of every aux channel, not only the fusion
+            # a faulty baro is taken out of every aux channel, not only the fusion,
+            # and what it pulled into their speed is let go
+            for c, aux_name in AUX:
+                if self.bank.baro_on[c]:
+                    self.bank.open_speed(c, self.m.baro_exclusion_vel_sigma_mps ** 2)
             self.bank.baro_on[GNSS] = self.bank.baro_on[RNG] = False
             # what the aux channels' sequential tests summed while their channel
             # rested on this source is its doing, not their sensors' (it had pinned
