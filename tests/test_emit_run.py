@@ -170,7 +170,9 @@ def test_live_run_asks_its_input_link_for_the_rates_and_says_the_answers(tmp_pat
     from mavnav.sinks.mavlink_commands import needed_rates
 
     cfg_path = tmp_path / "commands.yaml"
-    cfg_path.write_text("emit: {command_timeout_s: 0.3, command_attempts: 2}\n")
+    # a reply waits for the vehicle's next frame and the monitor's next turn: 1.5 s of wall clock
+    # keeps a busy machine's answers in time (0.3 s lost them under load), a silent stream costs 3 s
+    cfg_path.write_text("emit: {command_timeout_s: 1.5, command_attempts: 2}\n")
     rates = needed_rates(config_from_dict({}), R.MAV_AUTOPILOT_PX4)
     ids = {r.name: r.msg_id for r in rates}
     policy = {ids["HIGHRES_IMU"]: [R.MAV_RESULT_ACCEPTED],
