@@ -26,13 +26,12 @@ from __future__ import annotations
 
 import argparse
 import os
-import shlex
 import shutil
-import sys
 import tempfile
 import time
 from pathlib import Path
 
+from preamble import announce  # bench/preamble.py (this script's own directory)
 from mavnav.config import load_config
 from mavnav.fleet import run_fleet
 
@@ -67,8 +66,7 @@ def main() -> None:
     ap.add_argument("--logs", nargs="+", default=None, metavar="PATH", help="audit these logs instead of copies")
     ap.add_argument("--no-serial", action="store_true", help="skip the in-process run")
     args = ap.parse_args()
-    print("command:", " ".join(shlex.quote(a) for a in [".venv/bin/python", "bench/fleet.py", *sys.argv[1:]]))
-    print(f"cores: {os.cpu_count()}, load average before: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    announce("fleet.py")
     with tempfile.TemporaryDirectory() as tmp:
         if args.logs:
             from mavnav.ingest import expand_log_paths

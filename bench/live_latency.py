@@ -39,6 +39,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from audit import generate  # noqa: E402  (bench/audit.py: the same simulated flight)
+from preamble import announce  # noqa: E402
 
 from mavnav.cli.emit_options import make_emit_sinks  # noqa: E402
 from mavnav.cli.viewer_options import make_viewer_sinks  # noqa: E402
@@ -78,8 +79,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--rrd", action="store_true", help="also save the recording to an .rrd")
     args = ap.parse_args()
-    print("command: python bench/live_latency.py " + " ".join(sys.argv[1:]))
-    print(f"load average before: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    announce("live_latency.py")
     cfg = load_config(None)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "live.tlog"

@@ -29,6 +29,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from preamble import announce  # bench/preamble.py (this script's own directory)
 from mavnav.audit import AuditSink
 from mavnav.cli.run import AlarmPrinter
 from mavnav.config import load_config
@@ -88,8 +89,7 @@ def main() -> None:
     ap.add_argument("--every-s", type=float, default=300.0)
     ap.add_argument("--warm-min", type=float, default=10.0)
     args = ap.parse_args()
-    print("command: python bench/memory.py " + " ".join(sys.argv[1:]))
-    print(f"load average before: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    announce("memory.py")
     cfg = load_config(None)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "long.tlog"

@@ -29,6 +29,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from audit import generate  # noqa: E402  (bench/audit.py: the same simulated flight)
+from preamble import announce  # noqa: E402
 
 from mavnav.cli.viewer_options import ViewerProcess, free_port, make_viewer_sinks, rerun_executable  # noqa: E402
 from mavnav.config import load_config  # noqa: E402
@@ -51,8 +52,7 @@ def main() -> None:
     ap.add_argument("--minutes", type=float, default=2.0)
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    print("command: python bench/rerun_replay.py " + " ".join(sys.argv[1:]))
-    print(f"load average before: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    announce("rerun_replay.py")
     cfg = load_config(None)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "replay.tlog"

@@ -20,11 +20,12 @@ from __future__ import annotations
 
 import argparse
 import os
-import shlex
 import statistics
 import subprocess
 import sys
 import time
+
+from preamble import announce  # bench/preamble.py (this script's own directory)
 
 COMMANDS = {
     "bare import pymavlink.mavutil": ["-c", "import pymavlink.mavutil"],
@@ -46,9 +47,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeat", type=int, default=15)
     args = ap.parse_args()
-    print("command:", " ".join(shlex.quote(a) for a in ["python", "bench/startup.py", *sys.argv[1:]]))
+    announce("startup.py")
     print(f"python {sys.executable}, PYTHONPATH={os.environ.get('PYTHONPATH', '')}")
-    print(f"load average before: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
     for a in COMMANDS.values():  # page cache and .pyc warm-up, not timed
         once(a)
     times: dict[str, list[float]] = {k: [] for k in COMMANDS}
