@@ -21,7 +21,6 @@ frames at the same offsets.
 from __future__ import annotations
 
 import io
-from collections import Counter
 from pathlib import Path
 from typing import Iterator, Optional, Union
 
@@ -83,7 +82,7 @@ def _good_record_after(buf, pos: int, n: int, last_ts, stop: int = -1) -> bool:
     return False
 
 
-class RecordWalk:
+class RecordWalk(wire.FrameCounts):
     """The records of one tlog. Iterating over :meth:`walk` yields, for each
     accepted frame whose message id is in ``wanted``, ``(recv_s, msgid,
     sysid, compid, payload)``, followed by the record's file offsets
@@ -94,15 +93,9 @@ class RecordWalk:
     (every accepted frame) and the byte counters are filled while walking."""
 
     def __init__(self, wanted, chunk_size: int = CHUNK_BYTES, offsets: bool = False):
-        self.wanted = frozenset(wanted)
+        super().__init__(wanted)
         self.chunk_size = max(int(chunk_size), 2 * _MARGIN)
         self.offsets = offsets
-        self.counts: Counter = Counter()
-        self.frames = 0
-        self.bytes_read = 0
-        self.garbage_bytes = 0
-        self.crc_errors = 0
-        self.unknown_frames = 0
         self.truncated_bytes = 0
         self.truncated_at: Optional[int] = None  # byte offset of a record the end of the file cuts short
 

@@ -39,7 +39,7 @@ gaps below 128): what the link or the receive buffer lost.
 
 from __future__ import annotations
 
-from collections import Counter, deque
+from collections import deque
 from typing import Dict, List, Optional, Union
 
 from ..samples import Rejected
@@ -107,15 +107,9 @@ class _Link:
         self.jump: Optional[tuple] = None  # (next before, frames counted missing) of the last skip ahead
 
 
-class StreamReader:
+class StreamReader(wire.FrameCounts):
     def __init__(self, wanted, reorder_s: float = 0.0, reorder_frames: int = 64):
-        self.wanted = frozenset(wanted)
-        self.counts: Counter = Counter()
-        self.frames = 0
-        self.bytes_read = 0
-        self.garbage_bytes = 0
-        self.crc_errors = 0
-        self.unknown_frames = 0
+        super().__init__(wanted)
         self._buf = b""
         self._garbage_run = 0
         self._in_step = False  # the buffer starts where the last good frame ended

@@ -16,6 +16,7 @@ does.
 from __future__ import annotations
 
 import binascii
+from collections import Counter
 from typing import Callable, Dict, Optional, Sequence, Tuple
 
 from pymavlink.dialects.v20 import ardupilotmega as _dialect
@@ -183,3 +184,20 @@ def next_start(buf, start: int, n: int) -> int:
     if b < 0:
         return a
     return a if a < b else b
+
+
+class FrameCounts:
+    """What a frame reader counts while it reads, whatever the frames come
+    from (a tlog's records, a live link's bytes): every accepted frame per
+    ``(sysid, msgid)``, the bytes read, the garbage skipped, CRC failures and
+    frames of ids the dialect does not know; ``wanted``: the message ids it
+    yields."""
+
+    def __init__(self, wanted) -> None:
+        self.wanted = frozenset(wanted)
+        self.counts: Counter = Counter()
+        self.frames = 0
+        self.bytes_read = 0
+        self.garbage_bytes = 0
+        self.crc_errors = 0
+        self.unknown_frames = 0
