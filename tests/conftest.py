@@ -35,6 +35,7 @@ from __future__ import annotations
 import pytest
 
 from tests.support.emit import Peer
+from tests.support.paths import SCENARIOS
 
 KINDS = ("unit", "property", "simulation", "integration", "realdata", "golden")
 
@@ -55,3 +56,24 @@ def peer():
     p = Peer()
     yield p
     p.close()
+
+
+@pytest.fixture(scope="session")
+def simulated_tlog(tmp_path_factory):
+    """A factory: ``simulated_tlog(name, seed)`` is ``(path, result)``, the tlog
+    mavnav's simulator writes for ``config/scenarios/<name>.yaml`` with that
+    seed and its :class:`~mavnav.sim.SimResult`; each (name, seed) is
+    simulated once per session, whichever modules ask for it."""
+    from mavnav.sim import load_scenario, simulate
+
+    made: dict = {}
+
+    def make(name: str, seed: int):
+        if (name, seed) not in made:
+            res = simulate(load_scenario(SCENARIOS / f"{name}.yaml"), seed)
+            path = tmp_path_factory.mktemp("sim") / f"{name}_{seed}.tlog"
+            path.write_bytes(res.tlog)
+            made[(name, seed)] = (path, res)
+        return made[(name, seed)]
+
+    return make

@@ -25,12 +25,10 @@ from mavnav.config import Config
 from mavnav.ingest import LiveSource
 from mavnav.pipeline import run
 from mavnav.report import RunSummary
-from mavnav.sim import load_scenario, simulate
 from mavnav.sinks.mavlink_out import MavlinkOutSink
 from tests.support.emit import Autopilot
 from tests.support.live import LiveRun, free_udp_port, send_paced, tlog_frames
 from tests.support.emit import Peer, emit_config, texts_of
-from tests.support.paths import SCENARIOS
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -79,11 +77,9 @@ def ground(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def frames(tmp_path_factory):
+def frames(simulated_tlog):
     """(record-time offset s, frame bytes) of a simulated hover, its first REPLAY_S seconds."""
-    res = simulate(load_scenario(SCENARIOS / "px4_hover_gnss_step.yaml"), 3)
-    path = tmp_path_factory.mktemp("frames") / "hover.tlog"
-    path.write_bytes(res.tlog)
+    path, _ = simulated_tlog("px4_hover_gnss_step", 3)
     return tlog_frames(path, REPLAY_S)
 
 

@@ -18,22 +18,17 @@ from click.testing import CliRunner
 from pymavlink import mavutil
 
 from mavnav.cli import main
-from mavnav.sim import load_scenario, simulate
 from tests.support.emit import Autopilot
 from tests.support.emit import Peer
 from tests.support.live import tlog_frames, send_paced, LiveRun
-from tests.support.paths import SCENARIOS
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 
 
 @pytest.fixture(scope="module")
-def gnss_step(tmp_path_factory):
-    res = simulate(load_scenario(SCENARIOS / "px4_hover_gnss_step.yaml"), 11)
-    path = tmp_path_factory.mktemp("run") / "gnss_step.tlog"
-    path.write_bytes(res.tlog)
-    return path
+def gnss_step(simulated_tlog):
+    return simulated_tlog("px4_hover_gnss_step", 11)[0]
 
 
 @pytest.fixture(scope="module")

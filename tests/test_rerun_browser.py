@@ -28,11 +28,9 @@ from mavnav import pipeline
 from mavnav.cli.viewer_options import make_viewer_sinks
 from mavnav.config import Config
 from mavnav.ingest import TlogSource
-from mavnav.sim import load_scenario, simulate
 from mavnav.sinks import rerun_blueprint as bp
 
 from tests.support.rerun import Capture, read_rrd
-from tests.support.paths import SCENARIOS
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -84,7 +82,7 @@ LANE_OPACITY = 0.8  # the viewer draws state lanes a little see-through (measure
 
 
 @pytest.mark.browser
-def test_web_viewer_shows_the_pilot_a_fault_flight_in_chromium(tmp_path):
+def test_web_viewer_shows_the_pilot_a_fault_flight_in_chromium(tmp_path, simulated_tlog):
     if not Path(CHROMIUM).exists() or shutil.which(CHROMIUM) is None:
         pytest.skip("Debian's chromium is not installed at /usr/bin/chromium (apt-get install -y chromium)")
     from PIL import Image
@@ -95,9 +93,7 @@ def test_web_viewer_shows_the_pilot_a_fault_flight_in_chromium(tmp_path):
                                echo=said.append)
     try:
         assert sink.page_url and said == [f"mavnav: Rerun web viewer at {sink.page_url}"]
-        res = simulate(load_scenario(SCENARIOS / "px4_hover_gnss_step.yaml"), 7)
-        tlog = tmp_path / "gnss_step.tlog"
-        tlog.write_bytes(res.tlog)
+        tlog, _ = simulated_tlog("px4_hover_gnss_step", 7)
         capture = Capture()
         summary = pipeline.run(TlogSource(tlog), Config(), [capture, sink], info={"source": tlog.name})
         assert summary.sink_failures == {} and summary.epochs > 1000

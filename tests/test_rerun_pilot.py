@@ -19,11 +19,9 @@ from mavnav.cli.viewer_options import make_viewer_sinks
 from mavnav.config import Config
 from mavnav.ingest import TlogSource
 from mavnav.samples import GnssHeight
-from mavnav.sim import load_scenario, simulate
 from mavnav.sinks import rerun_blueprint as bp
 from mavnav.sinks.rerun_sink import READOUT_INTERVAL_S
 from tests.support.rerun import Capture, read_rrd
-from tests.support.paths import SCENARIOS
 
 HOVER_M = 15.0  # the scenario's hover height
 STEP_M = 10.0  # its GNSS step
@@ -31,11 +29,9 @@ WHITE, DARK = (255, 255, 255), (13, 16, 17)  # the viewer's light and dark plot 
 
 
 @pytest.fixture(scope="module")
-def gnss_step(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("pilot")
-    res = simulate(load_scenario(SCENARIOS / "px4_hover_gnss_step.yaml"), 7)
-    tlog, rrd = tmp / "gnss_step.tlog", tmp / "gnss_step.rrd"
-    tlog.write_bytes(res.tlog)
+def gnss_step(tmp_path_factory, simulated_tlog):
+    tlog, res = simulated_tlog("px4_hover_gnss_step", 7)
+    rrd = tmp_path_factory.mktemp("pilot") / "gnss_step.rrd"
     capture = Capture()
     sinks = make_viewer_sinks("none", None, str(rrd), live=False)
     summary = pipeline.run(TlogSource(tlog), Config(), [capture, *sinks], info={"source": "gnss_step"})
