@@ -14,7 +14,8 @@ import pytest
 from mavnav.errors import ConfigError
 from mavnav.report import RunSummary
 from mavnav.config import config_from_dict
-from mavnav.sinks.mavlink_commands import needed_rates, parse_rate
+from mavnav.ingest.systems import is_vehicle_heartbeat
+from mavnav.sinks.mavlink_commands import is_autopilot_heartbeat, needed_rates, parse_rate
 from mavnav.sinks.mavlink_out import MavlinkOutSink
 from tests.support.emit import Peer, emit_config, udp_sink
 from tests.support.emit import R, autopilot_heartbeat, Autopilot, run_until
@@ -240,3 +241,17 @@ def test_needed_rates_are_the_streams_the_monitor_reads_at_the_rates_the_config_
     assert strict == {"SCALED_IMU2": 50.0, "ATTITUDE": 50.0, "SCALED_PRESSURE2": 20.0, "GPS_RAW_INT": 10.0,
                       "RANGEFINDER": 10.0}
     assert parse_rate("rangefinder:10").msg_id == 173  # ArduPilot's dialect too
+
+
+def test_the_command_target_is_the_vehicle_rule_without_companion_computers():
+    # the sink's rule before it was the normaliser's: every type and autopilot value decides the same
+    not_targets = {R.MAV_TYPE_GCS, R.MAV_TYPE_ONBOARD_CONTROLLER}
+    for mav_type in range(R.MAV_TYPE_ENUM_END):
+        for autopilot in range(R.MAV_AUTOPILOT_ENUM_END):
+            hb = R.MAVLink_heartbeat_message(mav_type, autopilot, 0, 0, 0, 3)
+            assert is_autopilot_heartbeat(hb) == (autopilot != R.MAV_AUTOPILOT_INVALID and mav_type not in not_targets)
+    # a companion computer that names an autopilot: the normaliser's vehicle, never the commands' target
+    companion = R.MAVLink_heartbeat_message(R.MAV_TYPE_ONBOARD_CONTROLLER, R.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, 0, 3)
+    assert is_vehicle_heartbeat({"type": companion.type, "autopilot": companion.autopilot})
+    assert not is_autopilot_heartbeat(companion)
+    assert not is_autopilot_heartbeat(R.MAVLink_attitude_message(0, 0, 0, 0, 0, 0, 0))

@@ -18,6 +18,11 @@ def test_which_heartbeat_is_a_vehicle():
     assert is_vehicle_heartbeat(QUAD_APM)
     assert not is_vehicle_heartbeat(GCS)
     assert not is_vehicle_heartbeat({"type": 2, "autopilot": 8})
+    companion = {"type": 18, "autopilot": 3}  # MAV_TYPE_ONBOARD_CONTROLLER naming ArduPilot
+    assert is_vehicle_heartbeat(companion)  # the normaliser's choice: unchanged
+    assert not is_vehicle_heartbeat(companion, onboard_controller=False)  # the commands' target
+    assert is_vehicle_heartbeat(QUAD_APM, onboard_controller=False)
+    assert not is_vehicle_heartbeat(GCS, onboard_controller=False)
     assert describe_system(2, 3) == "quadrotor, ArduPilot"
     assert describe_system(6, 8) == "ground station"
 

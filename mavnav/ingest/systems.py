@@ -23,15 +23,22 @@ MAV_AUTOPILOT_ARDUPILOTMEGA = 3
 MAV_AUTOPILOT_PX4 = 12
 MAV_AUTOPILOT_INVALID = 8
 MAV_TYPE_GCS = 6
+MAV_TYPE_ONBOARD_CONTROLLER = 18  # a companion computer (mavnav's own heartbeat says it is one)
 HEARTBEAT = wire.MSG_ID["HEARTBEAT"]
 WAIT_HEARTBEAT_S = 2.0  # live: no vehicle heartbeat this long after starting: say what is awaited
 WAIT_HEARTBEAT_REPEAT_S = 10.0  # and again this often
 OTHER_FRAMES_BEFORE_SAYING = 20  # another system without a heartbeat is said after this many frames
 
 
-def is_vehicle_heartbeat(f: dict) -> bool:
-    """A HEARTBEAT (its fields) from an autopilot that is not a ground station."""
-    return f["autopilot"] != MAV_AUTOPILOT_INVALID and f["type"] != MAV_TYPE_GCS
+def is_vehicle_heartbeat(f: dict, *, onboard_controller: bool = True) -> bool:
+    """A HEARTBEAT (its fields) from an autopilot that is not a ground station.
+
+    ``onboard_controller=False``: nor a companion computer that names an
+    autopilot (the target of mavnav's commands must be the autopilot itself;
+    the normaliser's choice of the vehicle keeps the default).
+    """
+    return (f["autopilot"] != MAV_AUTOPILOT_INVALID and f["type"] != MAV_TYPE_GCS
+            and (onboard_controller or f["type"] != MAV_TYPE_ONBOARD_CONTROLLER))
 
 
 def describe_system(mav_type: int, autopilot: int) -> str:

@@ -20,7 +20,9 @@ from ..channel import EpochInputs, Model
 from ..config import Config
 from ..epochs import EpochBuilder, EpochStart
 from ..report import CHANNEL_NAMES, AlarmEvent, ChannelReport, EpochReport
-from ..sensors import INPUT, RANGE_STREAM
+from ..sensors import AUTOPILOT, INPUT, RANGE_STREAM, RANGEFINDER
+# the sensor words (the names GNSS and RNG are the bank's channel indices here)
+from ..sensors import BARO as BARO_S, BARO_INS as BARO_INS_S, GNSS as GNSS_S, IMU as IMU_S
 from ..samples import (
     AutopilotHeight,
     BaroHeight,
@@ -37,6 +39,7 @@ from .levels import normal_k
 from .tracker import SourceTracker
 
 _RATE_WINDOW_US = 5_000_000
+RNG_S = RANGEFINDER.short  # "rng": the rangefinder's key in the rates, as a slow input's reason prints it
 
 
 class RateMeter:
@@ -92,9 +95,9 @@ class Monitor:
         self.bank = ChannelBank(self.model)
         logic_cls = PaperLogic if self.mcfg.mode == "paper" else HypothesisLogic
         self.logic = logic_cls(self.cfg, self.bank)
-        self.raw = {"baro": math.nan, "gnss": math.nan, "rng": math.nan, "ap": math.nan}
-        self.rates = {k: RateMeter() for k in ("imu", "baro", "gnss", "rng")}
-        self._imu_times = self.rates["imu"]._q  # push's inline RateMeter.push
+        self.raw = {BARO_S: math.nan, GNSS_S: math.nan, RNG_S: math.nan, AUTOPILOT: math.nan}
+        self.rates = {k: RateMeter() for k in (IMU_S, BARO_S, GNSS_S, RNG_S)}
+        self._imu_times = self.rates[IMU_S]._q  # push's inline RateMeter.push
         self.input = None  # SourceTracker, created at the first epoch
         self._link_lost = False
         self._pending: list[AlarmEvent] = []
@@ -116,18 +119,18 @@ class Monitor:
             eps = self.builder._on_imu(t_us, s.f_up_mps2)  # EpochBuilder.push's IMU branch
             return self._epochs(eps) if eps else eps
         if isinstance(s, SpecificForceUp):
-            self.rates["imu"].push(s.t_us)
+            self.rates[IMU_S].push(s.t_us)
         elif isinstance(s, BaroHeight):
-            self.raw["baro"] = s.height_ref_m
-            self.rates["baro"].push(s.t_us)
+            self.raw[BARO_S] = s.height_ref_m
+            self.rates[BARO_S].push(s.t_us)
         elif isinstance(s, GnssHeight):
-            self.raw["gnss"] = s.height_ref_m
-            self.rates["gnss"].push(s.t_us)
+            self.raw[GNSS_S] = s.height_ref_m
+            self.rates[GNSS_S].push(s.t_us)
         elif isinstance(s, RangeHeight):
-            self.raw["rng"] = s.height_agl_m
-            self.rates["rng"].push(s.t_us)
+            self.raw[RNG_S] = s.height_agl_m
+            self.rates[RNG_S].push(s.t_us)
         elif isinstance(s, AutopilotHeight):
-            self.raw["ap"] = s.height_ref_m
+            self.raw[AUTOPILOT] = s.height_ref_m
         elif isinstance(s, Reboot):
             self.counters["reboots"] += 1
             self._on_reboot(s)
@@ -136,7 +139,7 @@ class Monitor:
             if s.t_us is not None and s.sensor == RANGE_STREAM:
                 self.logic.on_range_refused(s)
         elif isinstance(s, ReferenceSet):
-            if s.kind == "baro":
+            if s.kind == BARO_S:
                 self._baro_at_datum = s.at_datum
         elif isinstance(s, LinkLost):
             self._link_lost = True
@@ -198,7 +201,7 @@ class Monitor:
     def _height_sensors(self, d) -> list:
         """The height sensors the monitor has this epoch: the baro unless it is
         out, the GNSS and the rangefinder while their channels are available."""
-        out = [] if d.sources["baro_ins"].state in ("alarm", "unavailable") else ["baro"]
+        out = [] if d.sources[BARO_INS_S].state in ("alarm", "unavailable") else ["baro"]
         return out + [n for n, c in (("GNSS", GNSS), ("rangefinder", RNG)) if d.available[c]]
 
     def _input_state(self, t_us: int, d) -> Optional[AlarmEvent]:
@@ -211,7 +214,7 @@ class Monitor:
         self._rates_checked_us = t_us
         m = self.mcfg
         need_aux = max(m.alarm_rejections, 1) / m.time_to_alarm_s
-        need = {"imu": m.min_imu_rate_hz, "baro": m.min_baro_rate_hz, "gnss": need_aux, "rng": need_aux}
+        need = {IMU_S: m.min_imu_rate_hz, BARO_S: m.min_baro_rate_hz, GNSS_S: need_aux, RNG_S: need_aux}
         slow = []
         since_start = (t_us - self.logic.t0_us) * 1e-6
         slow_imu_hz = None
@@ -222,7 +225,7 @@ class Monitor:
                     continue  # absent inputs are the channels' business (unavailable)
                 if r < m.rate_tolerance_frac * need[k]:
                     slow.append(f"{k} {r:.1f} Hz < {need[k]:.0f}")
-                    if k == "imu":
+                    if k == IMU_S:
                         slow_imu_hz = r
         self.logic.slow_imu_hz = slow_imu_hz  # the INS tests' witness is too sparse to judge the baro
         if slow:
@@ -292,10 +295,10 @@ class Monitor:
             overall=overall,  # type: ignore[arg-type]
             vpl_m=vpl,
             alert_limit_m=self.mcfg.alert_limit_m,
-            baro_height_ref_m=self.raw["baro"],
-            gnss_height_ref_m=self.raw["gnss"],
-            range_height_agl_m=self.raw["rng"],
-            autopilot_height_ref_m=self.raw["ap"],
+            baro_height_ref_m=self.raw[BARO_S],
+            gnss_height_ref_m=self.raw[GNSS_S],
+            range_height_agl_m=self.raw[RNG_S],
+            autopilot_height_ref_m=self.raw[AUTOPILOT],
             mode=self.mcfg.mode,
         )
         return report, events

@@ -16,7 +16,7 @@ class Decision:
     available: tuple  # per channel: usable for comparison
     used: tuple  # per channel: in the fused output
     pairs: tuple  # PairReport in PAIR_NAMES order
-    sources: dict  # "gnss" | "rangefinder" | "baro_ins" -> SourceStatus
+    sources: dict  # sensors.SENSOR_SOURCES (gnss, rangefinder, baro_ins) -> SourceStatus
     height_fused_m: float
     sigma_fused_m: float
     events: list = field(default_factory=list)

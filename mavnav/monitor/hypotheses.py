@@ -47,6 +47,9 @@ import numpy as np
 from ..bank import BARO, GNSS, RNG, ChannelBank
 from ..channel import EpochInputs
 from ..config import Config
+# the sensor words (the names GNSS, RNG, BARO are the bank's channel indices here)
+from ..sensors import BARO as BARO_S, BARO_INS as BARO_INS_S, GNSS as GNSS_S, INS as INS_S
+from ..sensors import RANGEFINDER as RANGEFINDER_S
 from .cusum import Cusum, threshold_for
 from .decision import Decision, diff_sigmas, pair_reports
 from .doppler import MIN_SPAN_FRAC, DopplerCheck, Exceedance, InsDopplerCheck
@@ -62,18 +65,18 @@ from .tracker import SourceTracker
 from .verdict import SENSOR_SOURCES, Verdict, live_hypotheses
 from .window import RejectionWindow
 
-AUX = ((GNSS, "gnss"), (RNG, "rangefinder"))
+AUX = ((GNSS, GNSS_S), (RNG, RANGEFINDER_S))
 LABEL = {s: s.word for s in SENSOR_SOURCES}  # GNSS, rangefinder, baro+INS
-CHANNEL_OF = {"gnss": GNSS, "rangefinder": RNG, "baro_ins": BARO}
+CHANNEL_OF = {GNSS_S: GNSS, RANGEFINDER_S: RNG, BARO_INS_S: BARO}
 REFUSAL_KINDS = ("out_of_range", "invalid_status", "stuck", "impossible")
-_LEVEL_IMPLICATES = {name: frozenset(("baro", name)) for _, name in AUX}
+_LEVEL_IMPLICATES = {name: frozenset((BARO_S, name)) for _, name in AUX}
 _LEVEL_TEST = {name: f"baro level against {LABEL[name]}" for _, name in AUX}
 _KINK_KEYS = {name: (f"{name}-ins", f"{name}-baro") for _, name in AUX}
-_DISPLAY_TEST = {"gnss": "gnss innovation", "rangefinder": "rangefinder innovation", "baro_ins": "baro/INS"}
+_DISPLAY_TEST = {GNSS_S: "gnss innovation", RANGEFINDER_S: "rangefinder innovation", BARO_INS_S: "baro/INS"}
 _ONLY = {name: frozenset((name,)) for _, name in AUX}
-_WITH_BARO = {name: frozenset((name, "baro")) for _, name in AUX}
-_WITH_BARO_INS = {name: frozenset((name, "baro", "ins")) for _, name in AUX}
-_WITH_INS = {name: frozenset((name, "ins")) for _, name in AUX}
+_WITH_BARO = {name: frozenset((name, BARO_S)) for _, name in AUX}
+_WITH_BARO_INS = {name: frozenset((name, BARO_S, INS_S)) for _, name in AUX}
+_WITH_INS = {name: frozenset((name, INS_S)) for _, name in AUX}
 
 
 def _last(q: deque, n: int) -> list:
@@ -144,8 +147,8 @@ class HypothesisLogic:
         clear_us = int(m.clear_s * 1e6)
         self.trackers = {s: SourceTracker(s, t_us, boot, clear_us=clear_us) for s in SENSOR_SOURCES}
         fast_k = m.cusum_fast_k_sigma if m.mode != "paper" else 0.0
-        self.cusum = {s: Cusum(m.cusum_k_sigma, m.cusum_clip_sigma, fast_k) for s in ("gnss", "rangefinder")}
-        self.rates = {s: _Rate() for s in ("gnss", "rangefinder", "baro_ins")}
+        self.cusum = {s: Cusum(m.cusum_k_sigma, m.cusum_clip_sigma, fast_k) for s in (GNSS_S, RANGEFINDER_S)}
+        self.rates = {s: _Rate() for s in (GNSS_S, RANGEFINDER_S, BARO_INS_S)}
         self.rejections = {s: RejectionWindow(m.window_s) for s in SENSOR_SOURCES}
         self.excluded: set[str] = set()
         self.last_accept_us: dict[int, Optional[int]] = {GNSS: None, RNG: None}
@@ -153,7 +156,7 @@ class HypothesisLogic:
         self.last_baro_us = t_us
         self.last_baro_m: Optional[float] = None
         self.slow_imu_hz: Optional[float] = None  # set by the core's rate check: the IMU below min_imu_rate_hz
-        self.last_z = {"gnss": math.nan, "rangefinder": math.nan, "baro_ins": math.nan}
+        self.last_z = {GNSS_S: math.nan, RANGEFINDER_S: math.nan, BARO_INS_S: math.nan}
         self.consistent_since: dict[str, Optional[int]] = {s: None for s in SENSOR_SOURCES}
         self.warm_until = {s: t_us + self.warmup_us for s in SENSOR_SOURCES}
         self.pending_raw: dict[int, Optional[tuple]] = {GNSS: None, RNG: None}
@@ -167,15 +170,15 @@ class HypothesisLogic:
         self.isolated_since: Optional[int] = None
         self.hold_since: Optional[int] = None  # an unresolved failure held since
         self.last_hold: Optional[Judgement] = None  # the failure held, until its restarted tests run clean
-        self.restarted_us = {"gnss": -10**18, "rangefinder": -10**18}  # a held CUSUM last restarted
+        self.restarted_us = {GNSS_S: -10**18, RANGEFINDER_S: -10**18}  # a held CUSUM last restarted
         self.isolated_src: frozenset = frozenset()
         self.last_feedback_us = t_us
         self.baro_white_var = 0.0
         self.dv_var = 0.0
         self.envelope_failing = False
-        self.last_r_m = {"gnss": 0.0, "rangefinder": 0.0}
-        self.r_avg_m = {"gnss": 0.0, "rangefinder": 0.0}
-        self.last_sd_m = {"gnss": math.inf, "rangefinder": math.inf}
+        self.last_r_m = {GNSS_S: 0.0, RANGEFINDER_S: 0.0}
+        self.r_avg_m = {GNSS_S: 0.0, RANGEFINDER_S: 0.0}
+        self.last_sd_m = {GNSS_S: math.inf, RANGEFINDER_S: math.inf}
         self.level_since: dict[int, Optional[int]] = {GNSS: None, RNG: None}
         self.sudden: dict[str, tuple] = {}  # name -> (t_us, baro clean then, jump m)
         self.judgement = Judgement("clear", frozenset(), frozenset(), "start")
@@ -183,9 +186,9 @@ class HypothesisLogic:
         # ever widens (its windows overlap, so only the variance ratio counts)
         sc = (m.residual_scale_tau_s, m.residual_scale_min, m.residual_scale_max)
         aux_sc = (*sc, m.residual_scale_max_phi)
-        self.scale = {"gnss": ResidualScale(*aux_sc), "rangefinder": ResidualScale(*aux_sc),
-                      "ins": ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0),
-                      "baro": ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0)}
+        self.scale = {GNSS_S: ResidualScale(*aux_sc), RANGEFINDER_S: ResidualScale(*aux_sc),
+                      INS_S: ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0),
+                      BARO_S: ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0)}
         self.jump: Optional[list] = None  # open baro jump: [t0, size_m, sd0, offset_m, n_after, before]
         self.before_jump: deque = deque(maxlen=64)  # clean baro samples: (t, b, ins pos, ins vel, V)
         # the same offset at every clean sample (against the samples a confirm
@@ -294,7 +297,7 @@ class HypothesisLogic:
     def _judge_baro(self, ep: EpochInputs, t: int, changes: dict) -> float:
         """This epoch's baro row against the INS: its |z| (inf: none), the jump
         gate, the rejection window."""
-        self.rates["baro_ins"].push(t)
+        self.rates[BARO_INS_S].push(t)
         self.last_baro_us = t
         self.last_baro_m = ep.baro_m
         self.baro_white_var = ep.baro_white_var_m2
@@ -306,29 +309,29 @@ class HypothesisLogic:
             self.before_jump.clear()
             return math.inf
         nu2 = r * r / S
-        self.last_z["baro_ins"] = r / math.sqrt(S)
+        self.last_z[BARO_INS_S] = r / math.sqrt(S)
         # the jump gate at the baro row's measured scatter (never below the model's)
-        sc = self.scale["baro"]
+        sc = self.scale[BARO_S]
         reject = self.f.innovation_gating and nu2 > self.baro_gate * sc.sd ** 2
         if not reject and self.jump is None:
-            sc.push(t, self.last_z["baro_ins"])
-        if not self._warm("baro_ins", t):
-            self.rejections["baro_ins"].push(t, reject)
+            sc.push(t, self.last_z[BARO_INS_S])
+        if not self._warm(BARO_INS_S, t):
+            self.rejections[BARO_INS_S].push(t, reject)
             self.baro_judged = (r, math.sqrt(S), reject)
         if reject:
             changes["baro_restart"] = True  # no baro row anywhere; differencing restarts
-        return abs(self.last_z["baro_ins"])
+        return abs(self.last_z[BARO_INS_S])
 
     def _latest_baro_z(self, t: int) -> float:
         """No baro sample in this epoch (each sample has its own): the latest
         baro row, if no older than two baro intervals, says whether the baro
         stayed consistent (a baro step shows in its own row before any aux
         channel can follow it)."""
-        if self.jump is not None or self.last_z["baro_ins"] != self.last_z["baro_ins"]:
+        if self.jump is not None or self.last_z[BARO_INS_S] != self.last_z[BARO_INS_S]:
             return math.inf
-        iv = self.rates["baro_ins"].interval_s
+        iv = self.rates[BARO_INS_S].interval_s
         if iv == iv and t - self.last_baro_us <= 2e6 * iv:
-            return abs(self.last_z["baro_ins"])
+            return abs(self.last_z[BARO_INS_S])
         return math.inf
 
     def _judge_aux(self, ep: EpochInputs, c: int, name: str, aux, t: int, baro_z: float, changes: dict) -> None:
@@ -397,7 +400,7 @@ class HypothesisLogic:
     def _sequential(self, name: str, t: int, z: float, reject: bool) -> None:
         """The CUSUM (on the measured scale; frozen while the baro+INS source is
         out for its INS) and the rejection window."""
-        if self.f.window_test and not ("baro_ins" in self.excluded and self.ins_excluded):
+        if self.f.window_test and not (BARO_INS_S in self.excluded and self.ins_excluded):
             sc = self.scale[name]
             self.cusum[name].push(z / sc.factor)
             if not reject and self._cusum_stat(name) < self.m.suspect_frac * self._h(name):
@@ -426,7 +429,7 @@ class HypothesisLogic:
         self._push_window(self.doppler, "doppler", self.doppler_ex, t_meas, aux.height_m, aux.vel_up_mps)
         if self.last_baro_m is not None:  # its verdict is optional; readmission always heeds it
             # the latest baro carried to the GNSS sample's time by the Doppler velocity
-            iv = self.rates["baro_ins"].interval_s
+            iv = self.rates[BARO_INS_S].interval_s
             if iv == iv and abs(t_meas - self.last_baro_us) <= 2e6 * iv:
                 b = self.last_baro_m + aux.vel_up_mps * (t_meas - self.last_baro_us) * 1e-6
                 self._push_window(self.baro_doppler, "baro_doppler", self.baro_doppler_ex, t_meas, b, aux.vel_up_mps)
@@ -437,10 +440,10 @@ class HypothesisLogic:
         by the baro+INS channel's velocity. A receiver with a Doppler has the
         Doppler tests instead."""
         d = self.drift
-        iv = self.rates["baro_ins"].interval_s
+        iv = self.rates[BARO_INS_S].interval_s
         # either sensor out: its readings then are no reference for the drift after
         if (aux.vel_up_mps == aux.vel_up_mps or self.last_baro_m is None or iv != iv
-                or abs(t_meas - self.last_baro_us) > 2e6 * iv or {"gnss", "baro_ins"} & self.excluded):
+                or abs(t_meas - self.last_baro_us) > 2e6 * iv or {GNSS_S, BARO_INS_S} & self.excluded):
             d.clear()
             self.drift_ex.reset()
             return
@@ -468,15 +471,15 @@ class HypothesisLogic:
         that its innovations show (the Gauss-Markov state follows a ramp), so
         a GNSS innovation pass cannot clear it."""
         d = self.drift
-        if (not self.f.gnss_drift_check or {"gnss", "baro_ins"} & self.excluded or self._warm("gnss", t)
+        if (not self.f.gnss_drift_check or {GNSS_S, BARO_INS_S} & self.excluded or self._warm(GNSS_S, t)
                 or d.last_us is None or t - d.last_us > self.stale_us[GNSS] or d.last_slope_mps != d.last_slope_mps):
             return None
         thr = self._drift_thr()
         e = d.last_slope_mps
         txt = (f"GNSS altitude drifted {e:+.2f} m/s against the baro over {d.last_span_s:.0f} s "
                f"(threshold {thr:.2f} m/s)" if abs(e) > self.m.suspect_frac * thr else "")  # a pass has none
-        return self._graded("GNSS/baro drift", abs(e), thr, self.drift_ex, t, frozenset(("gnss", "baro")), txt,
-                            fail_scale_m=abs(e) * d.last_span_s, sizes={"gnss": 0.0})
+        return self._graded("GNSS/baro drift", abs(e), thr, self.drift_ex, t, frozenset((GNSS_S, BARO_S)), txt,
+                            fail_scale_m=abs(e) * d.last_span_s, sizes={GNSS_S: 0.0})
 
     def _doppler_verdict(self, t: int) -> Optional[Verdict]:
         """The GNSS altitude against its own Doppler velocity
@@ -486,15 +489,15 @@ class HypothesisLogic:
         rule out, as the drift test's (the receiver disagrees with itself; and
         its innovations cannot clear a ramp the Gauss-Markov state follows)."""
         d = self.doppler
-        if (not self.f.doppler_check or "gnss" in self.excluded or self._warm("gnss", t)
+        if (not self.f.doppler_check or GNSS_S in self.excluded or self._warm(GNSS_S, t)
                 or d.last_us is None or t - d.last_us > self.stale_us[GNSS] or d.last_e_m != d.last_e_m):
             return None
         thr = self._window_thr(d, "doppler")
         e = d.last_e_m
         txt = (f"GNSS altitude moved {e:+.2f} m against its own Doppler velocity over "
                f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m)" if abs(e) > self.m.suspect_frac * thr else "")
-        return self._graded("GNSS/Doppler", abs(e), thr, self.doppler_ex, t, frozenset(("gnss",)), txt,
-                            sizes={"gnss": 0.0})
+        return self._graded("GNSS/Doppler", abs(e), thr, self.doppler_ex, t, frozenset((GNSS_S,)), txt,
+                            sizes={GNSS_S: 0.0})
 
     def _graded(self, test: str, stat: float, thr: float, ex, t: int, implicates: frozenset, txt: str,
                 clears: frozenset = frozenset(), fail_scale_m: Optional[float] = None, sizes: Optional[dict] = None,
@@ -519,7 +522,7 @@ class HypothesisLogic:
         pass rules nothing out (a window sees a ramp's rate, not its size:
         a slow baro ramp passes it while its error grows)."""
         d = self.baro_doppler
-        if (not self.f.baro_doppler_check or {"gnss", "baro_ins"} & self.excluded or self._warm("gnss", t)
+        if (not self.f.baro_doppler_check or {GNSS_S, BARO_INS_S} & self.excluded or self._warm(GNSS_S, t)
                 or d.last_us is None or t - d.last_us > self.stale_us[GNSS] or d.last_e_m != d.last_e_m):
             return None
         thr = self._window_thr(d, "baro_doppler")
@@ -527,7 +530,7 @@ class HypothesisLogic:
         txt = (f"baro moved {e:+.2f} m against the GNSS Doppler velocity over "
                f"{d.last_span_s:.0f} s (threshold {thr:.2f} m; vehicle moved {d.last_disp_m:+.1f} m)"
                if abs(e) > self.m.suspect_frac * thr else "")
-        return self._graded("baro/Doppler", abs(e), thr, self.baro_doppler_ex, t, frozenset(("baro", "gnss")), txt)
+        return self._graded("baro/Doppler", abs(e), thr, self.baro_doppler_ex, t, frozenset((BARO_S, GNSS_S)), txt)
 
     def _push_ins_doppler(self, ep: EpochInputs) -> None:
         d = self.ins_doppler
@@ -561,8 +564,8 @@ class HypothesisLogic:
         velocity error ``e`` makes over half the window."""
         d = self.ins_doppler
         # the INS already out for this: its failures are explained (readmission watches them)
-        ins_out = "baro_ins" in self.excluded and self.ins_excluded
-        if (not self.f.ins_doppler_check or "gnss" in self.excluded or ins_out or self._warm("gnss", t)
+        ins_out = BARO_INS_S in self.excluded and self.ins_excluded
+        if (not self.f.ins_doppler_check or GNSS_S in self.excluded or ins_out or self._warm(GNSS_S, t)
                 or d.last_us is None or t - d.last_us > self.stale_us[GNSS] or d.last_e_mps != d.last_e_mps):
             return None
         thr = self._ins_doppler_thr()
@@ -573,9 +576,9 @@ class HypothesisLogic:
         to_pos_m = 0.5 * W  # a GNSS velocity error e over the window: e W / 2 of position
         txt = (f"INS velocity changed {-e:+.2f} m/s against the GNSS Doppler over "
                f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m/s)" if abs(e) > self.m.suspect_frac * thr else "")
-        return self._graded("INS/Doppler", abs(e), thr, self.insdop_ex, t, frozenset(("ins", "gnss")), txt,
-                            clears=frozenset(("ins",)), fail_scale_m=abs(e) * to_pos_m,
-                            sizes={"ins": abs(e) * to_ins_m}, pass_scale_m=thr * to_ins_m)
+        return self._graded("INS/Doppler", abs(e), thr, self.insdop_ex, t, frozenset((INS_S, GNSS_S)), txt,
+                            clears=frozenset((INS_S,)), fail_scale_m=abs(e) * to_pos_m,
+                            sizes={INS_S: abs(e) * to_ins_m}, pass_scale_m=thr * to_ins_m)
 
     def _anchor(self) -> int:
         best, best_var = BARO, math.inf
@@ -711,11 +714,11 @@ class HypothesisLogic:
         return sudden
 
     def _ins_verdict(self, t: int) -> Optional[Verdict]:
-        if self._warm("baro_ins", t) or t - self.last_baro_us > self.stale_baro_us:
+        if self._warm(BARO_INS_S, t) or t - self.last_baro_us > self.stale_baro_us:
             return None
         m = self.m
-        implicates = frozenset(("baro", "ins"))
-        rej = self.rejections["baro_ins"].rejected
+        implicates = frozenset((BARO_S, INS_S))
+        rej = self.rejections[BARO_INS_S].rejected
         v = self._jump_verdict(t, implicates)
         if v is not None:
             return v
@@ -723,7 +726,7 @@ class HypothesisLogic:
         if res is None:
             return None
         e, sigma, thr, D = res
-        sc = self.scale["ins"]
+        sc = self.scale[INS_S]
         stat = abs(e)
         if stat <= m.suspect_frac * thr:
             sc.push(t, e / sigma)  # frozen while the test leans towards a fault
@@ -734,16 +737,16 @@ class HypothesisLogic:
         # a second difference is blind to a ramp: a pass rules out the INS, never the
         # baro; and with the baro excluded it rules out nothing (its reference is out,
         # and the channel's accelerometer estimate has followed whichever was wrong)
-        clears = frozenset(("ins",)) if rej == 0 and "baro_ins" not in self.excluded else frozenset()
+        clears = frozenset((INS_S,)) if rej == 0 and BARO_INS_S not in self.excluded else frozenset()
         return self._graded("baro/INS", stat, thr, self.ins_ex, t, implicates, txt, clears=clears,
                             pass_scale_m=thr)  # V_s follows a slow error in part
 
     def _jump_verdict(self, t: int, implicates: frozenset) -> Optional[Verdict]:
         """A baro step that stayed (fail) or a jump being watched (a pass that clears nothing), if any."""
         jc = self.jump_confirmed
-        if jc is not None and t - jc[0] > self.rejections["baro_ins"].length_us:
+        if jc is not None and t - jc[0] > self.rejections[BARO_INS_S].length_us:
             jc = self.jump_confirmed = None
-        if not self.f.innovation_gating or "baro_ins" in self.excluded:
+        if not self.f.innovation_gating or BARO_INS_S in self.excluded:
             return None
         if jc is not None:
             return Verdict("baro/INS", "fail", implicates, stat=jc[2], threshold=math.sqrt(self.baro_gate),
@@ -763,7 +766,7 @@ class HypothesisLogic:
         height held by its own sensor, and its estimate of the baro's bias): a
         slowly growing baro or aux error that the differenced baro row cannot see."""
         out = []
-        if "baro_ins" in self.excluded or self.last_baro_m is None or self._warm("baro_ins", t):
+        if BARO_INS_S in self.excluded or self.last_baro_m is None or self._warm(BARO_INS_S, t):
             return out
         bank = self.bank
         avail = self._available(t)
@@ -801,7 +804,7 @@ class HypothesisLogic:
                 # and never where the channel models the GNSS's slow error: its b_g
                 # takes up a slow baro error, and H + dH follows the baro
                 tracks = held and not (c == GNSS and bank.model.gnss_gm_sigma_m > 0.0)
-                clear = frozenset(("baro",)) if abs(r) < self.m.clear_frac * thr and tracks else frozenset()
+                clear = frozenset((BARO_S,)) if abs(r) < self.m.clear_frac * thr and tracks else frozenset()
                 # scale: the threshold, not less the statistic: the channel's own height
                 # follows a slow baro error in part, so the margin overstates the power
                 # a baro fault of size X would read about X here: faults beyond the
@@ -811,14 +814,14 @@ class HypothesisLogic:
         return out
 
     def _raw_verdict(self) -> Optional[Verdict]:
-        if {"gnss", "rangefinder"} & self.excluded:
+        if {GNSS_S, RANGEFINDER_S} & self.excluded:
             return None
         v = self.raw_check.verdict()
         if v is None:
             return None
         agree, mean, sigma = v
         thr = self.k_cmp * sigma
-        implicates = frozenset(("gnss", "rangefinder"))
+        implicates = frozenset((GNSS_S, RANGEFINDER_S))
         if not agree:
             return Verdict("raw GNSS-rangefinder", "fail", implicates, stat=abs(mean), threshold=thr,
                            text=f"raw GNSS - rangefinder {mean:+.2f} m (threshold {thr:.2f} m)", scale_m=abs(mean))
@@ -863,7 +866,7 @@ class HypothesisLogic:
                     bad.append(f"reads {v:.2f} m (maximum {hi:g} m)")
         n = len(q) + len(ok)
         if len(bad) >= m.range_envelope_min_refused and len(bad) >= m.range_envelope_frac * n:
-            return Verdict("rangefinder envelope", "fail", frozenset(("rangefinder",)), stat=len(bad), threshold=n,
+            return Verdict("rangefinder envelope", "fail", frozenset((RANGEFINDER_S,)), stat=len(bad), threshold=n,
                            text=f"rangefinder {bad[-1]} in {len(bad)} of {n} readings while the vehicle is "
                                 f"{h:.1f} m up by baro+INS", scale_m=0.0)  # refused readings: no pass on
                                                                               # the accepted ones clears them
@@ -924,13 +927,13 @@ class HypothesisLogic:
         scatter lets the INS tell."""
         m = self.m
         out = []
-        if "baro_ins" in self.excluded:
+        if BARO_INS_S in self.excluded:
             return out
         ts = t * 1e-6
         for v, (_, name) in zip(aux, AUX):
-            if name == "gnss" and (v is None or v.level == "pass"):
+            if name == GNSS_S and (v is None or v.level == "pass"):
                 v = next((w for w in gnss_more if w is not None and w.level != "pass"), None)
-            if v is None or v.level == "pass" or "baro" not in v.implicates:
+            if v is None or v.level == "pass" or BARO_S not in v.implicates:
                 continue
             keys = (f"{name}-baro", f"{name}-ins", "baro-ins")
             if any(self.kink_sd[k].n < m.kink_min_learned for k in keys):
@@ -957,8 +960,8 @@ class HypothesisLogic:
             d = isolate(a, *k_aux, *k_baro)
             if abs(d) < self.kink_margin:
                 continue
-            bent, kept = (name, "baro") if d > 0 else ("baro", name)
-            out.append(Verdict(f"{name} ramp onset", "pass", frozenset((name, "baro")), frozenset((kept,)),
+            bent, kept = (name, BARO_S) if d > 0 else (BARO_S, name)
+            out.append(Verdict(f"{name} ramp onset", "pass", frozenset((name, BARO_S)), frozenset((kept,)),
                                abs(d), self.kink_margin,
                                text=f"{LABEL.get(bent, bent)} bent {-tau:.1f} s ago against the INS "
                                     f"({a:+.2f} m/s between {LABEL[name]} and baro; {LABEL[name]}-INS "
@@ -1027,13 +1030,13 @@ class HypothesisLogic:
         the hold rule needs)."""
         envelope = self._envelope_verdict(t)
         self.envelope_failing = envelope is not None  # also holds back the rangefinder's readmission
-        if "rangefinder" in self.excluded:
+        if RANGEFINDER_S in self.excluded:
             envelope = None
         ins_tests = (self._slow_ins(self._ins_verdict(t)), self._slow_ins(self._ins_doppler_verdict(t)))
         # an INS test that is not passing puts the INS among what an aux channel's
         # innovations can mean (the channel runs on it between its samples)
         self.ins_doubt = any(v is not None and v.level != "pass" for v in ins_tests)
-        aux = (self._aux_verdict(GNSS, "gnss", t), self._aux_verdict(RNG, "rangefinder", t))
+        aux = (self._aux_verdict(GNSS, GNSS_S, t), self._aux_verdict(RNG, RANGEFINDER_S, t))
         drift = self._drift_verdict(t)
         baro_doppler = self._baro_doppler_verdict(t)
         verdicts = [v for v in (*aux, *ins_tests, self._raw_verdict(), envelope, self._doppler_verdict(t),
@@ -1060,8 +1063,8 @@ class HypothesisLogic:
         sparse leave the baro+INS channel on the INS between them, so its level
         tests cannot tell a baro fault from its gaps, and a slow input never
         makes a sensor faulty (the same rule as :meth:`_slow_ins`)."""
-        hz = self.rates["baro_ins"].hz
-        if j.situation != "isolated" or "baro" not in j.candidates or hz >= self.m.rate_tolerance_frac * self.m.min_baro_rate_hz:
+        hz = self.rates[BARO_INS_S].hz
+        if j.situation != "isolated" or BARO_S not in j.candidates or hz >= self.m.rate_tolerance_frac * self.m.min_baro_rate_hz:
             return j
         return Judgement("ambiguous", j.candidates, j.sources,
                          f"cannot isolate: {j.reason}; the baro at {hz:.1f} Hz is too sparse to judge it")
@@ -1071,9 +1074,9 @@ class HypothesisLogic:
         bank = self.bank
         cleared = {n: self.trackers[n].state == "nominal" or
                    (self.trackers[n].state == "caution" and n not in self._held(j)) for n in SENSOR_SOURCES}
-        baro_ok = cleared["baro_ins"] and avail[BARO]
-        used = (avail[GNSS] and cleared["gnss"] and (baro_ok or not bank.baro_on[GNSS]),
-                avail[RNG] and cleared["rangefinder"] and (baro_ok or not bank.baro_on[RNG]),
+        baro_ok = cleared[BARO_INS_S] and avail[BARO]
+        used = (avail[GNSS] and cleared[GNSS_S] and (baro_ok or not bank.baro_on[GNSS]),
+                avail[RNG] and cleared[RANGEFINDER_S] and (baro_ok or not bank.baro_on[RNG]),
                 baro_ok)
         idx = [c for c in range(3) if used[c]]
         h, sigma = math.nan, math.nan
@@ -1124,7 +1127,8 @@ class HypothesisLogic:
         for v in verdicts:
             if v.failed:
                 name = v.test.split(" ")[0]
-                src = {"gnss": "gnss", "rangefinder": "rangefinder", "baro/INS": "baro_ins", "raw": "gnss"}.get(name)
+                # a test name's first word -> the source it blames
+                src = {"gnss": GNSS_S, "rangefinder": RANGEFINDER_S, "baro/INS": BARO_INS_S, "raw": GNSS_S}.get(name)
                 if src and src not in self.excluded:
                     return Judgement("isolated", frozenset(), frozenset((src,)), v.text)
         return judge([v for v in verdicts if not v.failed], live)
@@ -1132,7 +1136,7 @@ class HypothesisLogic:
     def _source_state(self, name: str, t: int, j: Judgement):
         tr = self.trackers[name]
         if name in self.excluded:
-            if (name == "baro_ins" and not self.ins_excluded and j.situation == "isolated" and "ins" in j.candidates
+            if (name == BARO_INS_S and not self.ins_excluded and j.situation == "isolated" and INS_S in j.candidates
                     and t - (self.isolated_since or t) >= self.persist_us):
                 # out for its baro, now isolated for its INS too: what the aux
                 # channels' sequential tests sum from here is the INS's doing (an
@@ -1142,7 +1146,7 @@ class HypothesisLogic:
                 for _, aux_name in AUX:
                     self.cusum[aux_name].clear()
             return self._maybe_readmit(name, t)
-        if name == "baro_ins":
+        if name == BARO_INS_S:
             if t - self.last_baro_us > self.stale_baro_us:
                 return tr.set("unavailable", t, "no recent baro")
         else:
@@ -1154,8 +1158,8 @@ class HypothesisLogic:
         if name in j.sources:
             if j.situation == "isolated":
                 if t - (self.isolated_since or t) >= self.persist_us:
-                    if name == "baro_ins":
-                        self.ins_excluded = "ins" in j.candidates
+                    if name == BARO_INS_S:
+                        self.ins_excluded = INS_S in j.candidates
                     return self._exclude(name, t, j.reason)
                 return tr.set("caution", t, j.reason)
             return tr.set(j.state, t, j.reason)
@@ -1164,7 +1168,7 @@ class HypothesisLogic:
     def _exclude(self, name: str, t: int, reason: str):
         self.excluded.add(name)
         self.consistent_since[name] = None
-        if name == "baro_ins":
+        if name == BARO_INS_S:
             self.baro_excluded_us = t
             # a faulty baro is taken out of every aux channel, not only the fusion,
             # and what it pulled into their speed is let go
@@ -1187,7 +1191,7 @@ class HypothesisLogic:
 
     def _others_fused(self, exclude: int) -> Optional[tuple[float, float]]:
         bank = self.bank
-        idx = [c for c, n in ((GNSS, "gnss"), (RNG, "rangefinder"), (BARO, "baro_ins"))
+        idx = [c for c, n in ((GNSS, GNSS_S), (RNG, RANGEFINDER_S), (BARO, BARO_INS_S))
                if c != exclude and n not in self.excluded and bank.P[c, 0, 0] <= self.m.max_channel_sigma_m ** 2]
         if not idx:
             return None
@@ -1203,7 +1207,7 @@ class HypothesisLogic:
         return self.f.readmission and t - self.consistent_since[name] >= self.readmit_us
 
     def _maybe_readmit(self, name: str, t: int):
-        if name == "baro_ins":
+        if name == BARO_INS_S:
             return self._maybe_readmit_baro(t)
         c = CHANNEL_OF[name]
         raw = self.pending_raw[c]
@@ -1235,7 +1239,7 @@ class HypothesisLogic:
         """The Doppler's integral over the baro/Doppler window, while the baro is
         in use, disagrees with the baro beyond clear_frac of that test's threshold."""
         d = self.baro_doppler
-        if "baro_ins" in self.excluded or d.last_e_m != d.last_e_m:
+        if BARO_INS_S in self.excluded or d.last_e_m != d.last_e_m:
             return False
         return abs(d.last_e_m) > self.m.clear_frac * self._window_thr(d, "baro_doppler")
 
@@ -1243,7 +1247,7 @@ class HypothesisLogic:
         """Back when the baro agrees with the INS again and, where an aux
         channel runs without it, with that channel's level ``H + dH``."""
         bank = self.bank
-        rej = self.rejections["baro_ins"].rejected
+        rej = self.rejections[BARO_INS_S].rejected
         v = self._ins_verdict_quiet(t)
         # and not while the INS, or the baro, still disagrees with the GNSS Doppler
         # (an accelerometer fault must end before the source is back, and a baro
@@ -1258,10 +1262,10 @@ class HypothesisLogic:
                 r = self.last_baro_m - (x[0] + x[2])
                 var = P[0, 0] + P[2, 2] + 2.0 * P[0, 2] + bank.model.sigma_bb_m ** 2 + self.baro_white_var
                 ok = ok and abs(r) <= self.k_cmp * math.sqrt(var)
-        if not self._consistent_for("baro_ins", t, bool(ok)):
+        if not self._consistent_for(BARO_INS_S, t, bool(ok)):
             return None
-        self.excluded.discard("baro_ins")
-        self.rejections["baro_ins"].clear()
+        self.excluded.discard(BARO_INS_S)
+        self.rejections[BARO_INS_S].clear()
         self._rebase_baro(t, aux=not self.ins_excluded)
         bank.baro_on[:] = True  # differencing restarts in the aux channels
         # the aux channels' sequential tests summed innovations their channel made
@@ -1273,7 +1277,7 @@ class HypothesisLogic:
                 # and a channel that ran on the faulty INS starts again
                 self._reinit_aux(c, name, t, math.sqrt(self.sensor_var_floor[c]))
         self.ins_excluded = False
-        return self.trackers["baro_ins"].set("nominal", t, f"readmitted after {self.m.readmit_s:g} s consistent")
+        return self.trackers[BARO_INS_S].set("nominal", t, f"readmitted after {self.m.readmit_s:g} s consistent")
 
     def _rebase_baro(self, t: int, aux: bool) -> None:
         """The baro is back after a fault of its own, at a level that need not
@@ -1310,7 +1314,7 @@ class HypothesisLogic:
         with the noise the test itself uses: the INS model's, the measured IMU
         scatter beyond it, and the measured scale."""
         model = self.bank.model
-        iv = self.rates["baro_ins"].interval_s
+        iv = self.rates[BARO_INS_S].interval_s
         T = max(iv, 1e-3) if iv == iv else 0.1
         psd = 2.0 * model.sigma_a_mps2 ** 2 / model.alpha_a_per_s + self.dv_var / T
         res = self.ins.residual(self.baro_white_var, psd, model.baro_bias_rw_m_per_sqrt_s ** 2,
@@ -1318,7 +1322,7 @@ class HypothesisLogic:
         if res is None:
             return None
         e, sigma, D = res
-        return e, sigma, self.k_cmp * sigma * self.scale["ins"].factor, D
+        return e, sigma, self.k_cmp * sigma * self.scale[INS_S].factor, D
 
     def _ins_verdict_quiet(self, t: int) -> bool:
         """Readmission: the baro agrees with the INS by the test's own noise
@@ -1335,7 +1339,7 @@ class HypothesisLogic:
         if t - self.last_feedback_us < self.feedback_us:
             return
         self.last_feedback_us = t
-        if "baro_ins" in self.excluded or self.trackers["baro_ins"].state != "nominal":
+        if BARO_INS_S in self.excluded or self.trackers[BARO_INS_S].state != "nominal":
             return
         src = [c for c, name in AUX if avail[c] and self.trackers[name].state == "nominal"
                and t - self.trackers[name].since_us >= self.validate_us and not self._warm(name, t)]

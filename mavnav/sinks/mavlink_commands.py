@@ -10,8 +10,9 @@ which message an answer is for), and checks each COMMAND_ACK:
   ``attempts`` times in all (``confirmation`` counts the retries);
 * DENIED, UNSUPPORTED, FAILED, CANCELLED: refused, reported, not retried.
 
-The target is the first autopilot heard (a HEARTBEAT whose autopilot is not
-MAV_AUTOPILOT_INVALID and whose type is not a GCS or an onboard controller);
+The target is the first autopilot heard (the normaliser's vehicle rule,
+:func:`mavnav.ingest.systems.is_vehicle_heartbeat`: autopilot not
+MAV_AUTOPILOT_INVALID, type not a GCS; and not an onboard controller either);
 nothing is sent before one is heard. Timing is on the wall clock (the
 vehicle answers in real time), passed in by the caller.
 
@@ -37,6 +38,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from ..config import Config
 from ..errors import ConfigError
+from ..ingest.systems import is_vehicle_heartbeat
 from ..sensors import BARO, GNSS, IMU, RANGEFINDER
 
 log = logging.getLogger("mavnav.sinks.mavlink_out")
@@ -45,7 +47,6 @@ MAV_CMD_SET_MESSAGE_INTERVAL = mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL  # 511
 
 _IDS: Dict[str, int] = {cls.msgname: mid for mid, cls in dialect.mavlink_map.items()}
 
-_NOT_TARGETS = {mavlink2.MAV_TYPE_GCS, mavlink2.MAV_TYPE_ONBOARD_CONTROLLER}
 _RESULT = {k: v.name.replace("MAV_RESULT_", "") for k, v in mavlink2.enums["MAV_RESULT"].items()}
 
 
@@ -112,11 +113,10 @@ Requests = Union[Sequence[RateRequest], Callable[[object], Sequence[RateRequest]
 
 
 def is_autopilot_heartbeat(msg) -> bool:
-    return (
-        msg.get_type() == "HEARTBEAT"
-        and msg.autopilot != mavlink2.MAV_AUTOPILOT_INVALID
-        and msg.type not in _NOT_TARGETS
-    )
+    """A HEARTBEAT of a vehicle's autopilot (the normaliser's rule) that is not a
+    companion computer naming one: commands go to the autopilot itself."""
+    return msg.get_type() == "HEARTBEAT" and is_vehicle_heartbeat(
+        {"autopilot": msg.autopilot, "type": msg.type}, onboard_controller=False)
 
 
 class IntervalRequester:
