@@ -925,48 +925,55 @@ class HypothesisLogic:
         implicates its sensor and the baro: which of the two bent against the
         INS (a pass that rules the other out), if the flight's own kink
         scatter lets the INS tell."""
-        m = self.m
-        out = []
         if BARO_INS_S in self.excluded:
-            return out
-        ts = t * 1e-6
+            return []
+        out = []
         for v, (_, name) in zip(aux, AUX):
             if name == GNSS_S and (v is None or v.level == "pass"):
                 v = next((w for w in gnss_more if w is not None and w.level != "pass"), None)
             if v is None or v.level == "pass" or BARO_S not in v.implicates:
                 continue
-            keys = (f"{name}-baro", f"{name}-ins", "baro-ins")
-            if any(self.kink_sd[k].n < m.kink_min_learned for k in keys):
-                continue
-            s, y = self.kink[keys[0]].arrays(ts)
-            if s.size < m.kink_min_samples or s[0] > -m.kink_min_fill_frac * m.kink_window_s:
-                continue
-            taus = onsets(s, m.kink_min_pre_s, m.kink_min_post_s)
-            if taus.size == 0:
-                continue
-            num, den = kink_fit(s, y, taus, quadratic=False)
-            good = den > 0
-            if not good.any():
-                continue
-            sd_ab = self.kink_sd[keys[0]].sd
-            z = np.where(good, num / np.sqrt(np.where(good, den, 1.0)), 0.0) / sd_ab
-            j = int(np.argmax(np.abs(z)))
-            if abs(z[j]) < m.kink_min_z:
-                continue  # no kink to explain
-            tau, a = float(taus[j]), float(num[j] / den[j])
-            k_aux, k_baro = self._kink(keys[1], ts, tau), self._kink(keys[2], ts, tau)
-            if k_aux is None or k_baro is None:
-                continue
-            d = isolate(a, *k_aux, *k_baro)
-            if abs(d) < self.kink_margin:
-                continue
-            bent, kept = (name, BARO_S) if d > 0 else (BARO_S, name)
-            out.append(Verdict(f"{name} ramp onset", "pass", frozenset((name, BARO_S)), frozenset((kept,)),
-                               abs(d), self.kink_margin,
-                               text=f"{LABEL.get(bent, bent)} bent {-tau:.1f} s ago against the INS "
-                                    f"({a:+.2f} m/s between {LABEL[name]} and baro; {LABEL[name]}-INS "
-                                    f"{k_aux[0]:+.2f}, baro-INS {k_baro[0]:+.2f} m/s)", scale_m=0.0))
+            verdict = self._kink_verdict(t * 1e-6, name)
+            if verdict is not None:
+                out.append(verdict)
         return out
+
+    def _kink_verdict(self, ts: float, name: str) -> Optional[Verdict]:
+        """Whether aux sensor ``name`` or the baro bent against the INS at the
+        strongest kink of their difference in the window (None: the INS cannot
+        tell, or there is no kink to explain)."""
+        m = self.m
+        keys = (f"{name}-baro", f"{name}-ins", "baro-ins")
+        if any(self.kink_sd[k].n < m.kink_min_learned for k in keys):
+            return None
+        s, y = self.kink[keys[0]].arrays(ts)
+        if s.size < m.kink_min_samples or s[0] > -m.kink_min_fill_frac * m.kink_window_s:
+            return None
+        taus = onsets(s, m.kink_min_pre_s, m.kink_min_post_s)
+        if taus.size == 0:
+            return None
+        num, den = kink_fit(s, y, taus, quadratic=False)
+        good = den > 0
+        if not good.any():
+            return None
+        sd_ab = self.kink_sd[keys[0]].sd
+        z = np.where(good, num / np.sqrt(np.where(good, den, 1.0)), 0.0) / sd_ab
+        j = int(np.argmax(np.abs(z)))
+        if abs(z[j]) < m.kink_min_z:
+            return None  # no kink to explain
+        tau, a = float(taus[j]), float(num[j] / den[j])
+        k_aux, k_baro = self._kink(keys[1], ts, tau), self._kink(keys[2], ts, tau)
+        if k_aux is None or k_baro is None:
+            return None
+        d = isolate(a, *k_aux, *k_baro)
+        if abs(d) < self.kink_margin:
+            return None
+        bent, kept = (name, BARO_S) if d > 0 else (BARO_S, name)
+        return Verdict(f"{name} ramp onset", "pass", frozenset((name, BARO_S)), frozenset((kept,)),
+                       abs(d), self.kink_margin,
+                       text=f"{LABEL.get(bent, bent)} bent {-tau:.1f} s ago against the INS "
+                            f"({a:+.2f} m/s between {LABEL[name]} and baro; {LABEL[name]}-INS "
+                            f"{k_aux[0]:+.2f}, baro-INS {k_baro[0]:+.2f} m/s)", scale_m=0.0)
 
     # ------------------------------------------------------------------ after the step
 
