@@ -255,3 +255,43 @@ def test_the_command_target_is_the_vehicle_rule_without_companion_computers():
     assert is_vehicle_heartbeat({"type": companion.type, "autopilot": companion.autopilot})
     assert not is_autopilot_heartbeat(companion)
     assert not is_autopilot_heartbeat(R.MAVLink_attitude_message(0, 0, 0, 0, 0, 0, 0))
+
+
+def _heard_from(sysid: int, msg):
+    """``msg`` as the link decodes it from system ``sysid`` (real pymavlink framing)."""
+    frame = msg.pack(R.MAVLink(None, srcSystem=sysid, srcComponent=1))
+    return R.MAVLink(None).parse_char(frame)
+
+
+@pytest.mark.unit
+def test_the_commands_go_to_the_autopilot_of_the_system_the_monitor_watches():
+    """Two vehicles on one link: with ``--sysid 2`` the rate requests go to
+    system 2's autopilot, though system 1's is heard first; without it, to the
+    first autopilot heard."""
+    from mavnav.sinks.mavlink_commands import IntervalRequester
+
+    rates = [parse_rate("HIGHRES_IMU:50")]
+    for vehicle, expected in ((2, (2, 1)), (None, (1, 1))):
+        req = IntervalRequester(rates, (1, 191), vehicle_sysid=vehicle)
+        for sysid in (1, 2):
+            req.on_message(_heard_from(sysid, autopilot_heartbeat()), 0.0)
+        assert req.target == expected
+        cmd = req.poll(0.0)
+        assert (cmd.target_system, cmd.target_component) == expected
+
+
+@pytest.mark.unit
+def test_the_run_hands_its_sysid_to_the_command_sink():
+    from mavnav.cli.run import build_sinks
+    from mavnav.config import ViewerSection
+
+    peer = Peer()
+    try:
+        flags = {"emit": peer.url, "allow_commands": True}
+        sinks = build_sinks(config_from_dict({}), None, True, ViewerSection(), flags, 7)
+        [out] = [s for s in sinks if isinstance(s, MavlinkOutSink)]
+        assert out.requester is not None and out.requester.vehicle_sysid == 7
+        for s in sinks:
+            s.close(RunSummary())
+    finally:
+        peer.close()

@@ -100,11 +100,12 @@ def emit_settings(cfg: Config, flags: dict) -> EmitSection:
 
 
 def emit_sinks(cfg: Config, flags: dict, *, live_input: Optional[bool] = None,
-               say: Optional[Callable[[str], None]] = None) -> List[Sink]:
+               say: Optional[Callable[[str], None]] = None, vehicle_sysid: Optional[int] = None) -> List[Sink]:
     """The MAVLink output sinks of a command: none without ``--emit`` (and the
     flags that need it refused); else as the ``emit:`` section says, with the
     flags given over it. The section's ``message_rates`` apply only with
-    ``--allow-commands``."""
+    ``--allow-commands``; its commands go to the autopilot of ``vehicle_sysid``
+    (``--sysid``; None: the first autopilot heard)."""
     if flags.get("emit") is None:
         return make_emit_sinks(**flags, live_input=live_input, config=cfg, say=say)
     settings = emit_settings(cfg, flags)
@@ -112,7 +113,7 @@ def emit_sinks(cfg: Config, flags: dict, *, live_input: Optional[bool] = None,
     if flags.get("request_rate") and not allow:
         raise ConfigError("--request-rate needs --allow-commands")
     config = cfg.model_copy(update={"emit": settings})
-    return _sinks(flags["emit"], config, allow, live_input=live_input, say=say)
+    return _sinks(flags["emit"], config, allow, live_input=live_input, say=say, vehicle_sysid=vehicle_sysid)
 
 
 def _split_baud(connection: str):
@@ -154,6 +155,7 @@ def make_emit_sinks(
     signing_key: Optional[str] = None,
     signing_link_id: int = 0,
     live_input: Optional[bool] = None,
+    vehicle_sysid: Optional[int] = None,
     config: Optional[Config] = None,
     say: Optional[Callable[[str], None]] = None,
     clock: Callable[[], float] = time.monotonic,
@@ -186,12 +188,12 @@ def make_emit_sinks(
         "signing_link_id": signing_link_id,
     }, "emit")
     return _sinks(emit, config.model_copy(update={"emit": settings}), allow_commands, live_input=live_input,
-                  say=say, clock=clock, wall_clock=wall_clock)
+                  say=say, clock=clock, wall_clock=wall_clock, vehicle_sysid=vehicle_sysid)
 
 
 def _sinks(emit: str, config: Config, allow_commands: bool, *, live_input: Optional[bool],
            say: Optional[Callable[[str], None]], clock: Callable[[], float] = time.monotonic,
-           wall_clock: Callable[[], float] = time.time) -> List[Sink]:
+           wall_clock: Callable[[], float] = time.time, vehicle_sysid: Optional[int] = None) -> List[Sink]:
     """The sink sending to connection ``emit`` as ``config.emit`` says (the flags
     already over it): the rates and the key checked before the link is opened."""
     from ..sinks.mavlink_link import load_signing_key
@@ -202,7 +204,8 @@ def _sinks(emit: str, config: Config, allow_commands: bool, *, live_input: Optio
     if allow_commands:
         requested_rates(settings)  # a bad NAME:HZ is refused before anything is opened
     secret = load_signing_key(settings.signing_key) if settings.signing_key else None
-    sink_args = dict(allow_commands=allow_commands, signing_secret=secret, clock=clock, wall_clock=wall_clock, say=say)
+    sink_args = dict(allow_commands=allow_commands, signing_secret=secret, clock=clock, wall_clock=wall_clock, say=say,
+                     vehicle_sysid=vehicle_sysid)
     if emit == INPUT:
         if live_input is False:
             raise ConfigError("--emit input needs a live input link (`run`); use a connection string here")

@@ -40,7 +40,8 @@ def common_options(f):
     f = click.option("--csv", "csv_path", type=click.Path(dir_okay=False, writable=True), default=None,
                      help="Write the estimates of every epoch to this CSV file.")(f)
     f = click.option("--sysid", type=click.IntRange(1, 255), default=None,
-                     help="Vehicle system id (default: the first autopilot heartbeat).")(f)
+                     help="Vehicle system id (default: the first autopilot heartbeat); with --allow-commands "
+                          "the rate requests go to its autopilot.")(f)
     f = click.option("--config", "config_path", type=click.Path(dir_okay=False), default=None,
                      help="Configuration YAML (default: built-in small-drone defaults).")(f)
     return f
@@ -146,12 +147,13 @@ def parse_speed(text: str) -> Optional[float]:
 
 
 def build_sinks(cfg: Config, csv_path: Optional[str], live: bool, viewer: ViewerSection,
-                emit_flags: dict) -> list[Sink]:
+                emit_flags: dict, sysid: Optional[int] = None) -> list[Sink]:
     sinks: list[Sink] = [AlarmPrinter()]
     if csv_path:
         sinks.append(CsvSink(csv_path))
     sinks += viewer_sinks(viewer, live=live)
-    sinks += emit_sinks(cfg, emit_flags, live_input=live, say=lambda text: click.echo(text, err=True))
+    sinks += emit_sinks(cfg, emit_flags, live_input=live, say=lambda text: click.echo(text, err=True),
+                        vehicle_sysid=sysid)
     return sinks
 
 
@@ -189,7 +191,7 @@ def run_cmd(connection: str, config_path, sysid, csv_path, inject, viewer_flags,
 
     old = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        sinks = build_sinks(cfg, csv_path, True, viewer, emit_flags)
+        sinks = build_sinks(cfg, csv_path, True, viewer, emit_flags, sysid)
         click.echo(f"mavnav: monitoring {connection} ({cfg.monitor.mode} mode); Ctrl-C to stop", err=True)
         # the sinks write back on the input link, and take the replies to their commands from it
         summary = run_pipeline(source, cfg, sinks, info={"source": connection, "live": True,
@@ -227,7 +229,7 @@ def replay_cmd(tlog: str, speed: str, config_path, sysid, csv_path, inject, view
     if faults:
         source = FaultedSource(source, faults)
     # a paced replay is watched as it goes: the viewer logs as for a live run
-    sinks = build_sinks(cfg, csv_path, pace is not None, viewer, emit_flags)
+    sinks = build_sinks(cfg, csv_path, pace is not None, viewer, emit_flags, sysid)
     # SIGINT and SIGTERM alike: stop between samples, close the sinks (the CSV
     # complete), print the summary, exit 130 as for Ctrl-C
     stop: dict = {}

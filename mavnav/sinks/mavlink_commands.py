@@ -129,6 +129,8 @@ class IntervalRequester:
     makes it once the target is heard (:func:`needed_rates` depends on the
     autopilot). ``on_result(request, result)`` is called at each verdict
     (the sink tells a person; this class logs at DEBUG only).
+    ``vehicle_sysid``: the system the monitor watches (``--sysid``); the
+    commands go to its autopilot only (None: the first autopilot heard).
     """
 
     def __init__(
@@ -139,6 +141,7 @@ class IntervalRequester:
         timeout_s: float = 1.0,
         attempts: int = 3,
         on_result: Optional[Callable[[RateRequest, str], None]] = None,
+        vehicle_sysid: Optional[int] = None,
     ):
         if attempts < 1:
             raise ValueError("attempts must be >= 1")
@@ -150,6 +153,8 @@ class IntervalRequester:
         self.timeout_s = timeout_s
         self.attempts = attempts
         self.target: Optional[Tuple[int, int]] = None
+        #: the system the monitor watches (``--sysid``): only its autopilot is a target
+        self.vehicle_sysid = vehicle_sysid
         self.results: Dict[str, str] = {}
         self.sent = 0
         self._current: Optional[RateRequest] = None
@@ -164,7 +169,8 @@ class IntervalRequester:
     def on_message(self, msg, now: float) -> None:
         mtype = msg.get_type()
         if mtype == "HEARTBEAT":
-            if self.target is None and is_autopilot_heartbeat(msg):
+            if (self.target is None and is_autopilot_heartbeat(msg)
+                    and self.vehicle_sysid in (None, msg.get_srcSystem())):
                 self.target = (msg.get_srcSystem(), msg.get_srcComponent())
                 if self._plan is not None:
                     self.requests = list(self._plan(msg))

@@ -163,6 +163,7 @@ class MavlinkOutSink(Sink):
         clock: Callable[[], float] = time.monotonic,
         wall_clock: Callable[[], float] = time.time,
         say: Optional[Callable[[str], None]] = None,
+        vehicle_sysid: Optional[int] = None,
     ):
         """What is sent, and as whom: ``config.emit`` (the CLI gives the run's
         configuration with the flags over its ``emit:`` section); the rest of
@@ -170,7 +171,9 @@ class MavlinkOutSink(Sink):
         ``allow_commands`` are commands sent (``config.emit.message_rates``, or
         those rates). ``signing_secret``: the 32-byte MAVLink 2 signing key (the
         CLI reads it from ``emit.signing_key``'s file); None: unsigned.
-        ``say``: where the command results are told to a person (the console)."""
+        ``say``: where the command results are told to a person (the console).
+        ``vehicle_sysid``: the system the monitor watches (``--sysid``), whose
+        autopilot alone the commands go to (None: the first autopilot heard)."""
         if (link is None) != use_input_link:
             raise ValueError("give a link, or use_input_link=True (not both)")
         if signing_secret is not None and len(signing_secret) != KEY_BYTES:
@@ -206,6 +209,7 @@ class MavlinkOutSink(Sink):
             self.requester = IntervalRequester(
                 plan, (cfg.sysid, cfg.compid),
                 timeout_s=cfg.command_timeout_s, attempts=cfg.command_attempts, on_result=self._on_result,
+                vehicle_sysid=vehicle_sysid,
             )
         self._read_link = False  # whether this sink reads replies from its own link
         self._next_poll = -INF
