@@ -38,13 +38,11 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from audit import generate  # noqa: E402  (bench/audit.py: the same simulated flight)
-from preamble import announce  # noqa: E402
+from preamble import announce, simulated_samples  # noqa: E402
 
 from mavnav.cli.emit_options import make_emit_sinks  # noqa: E402
 from mavnav.cli.viewer_options import make_viewer_sinks  # noqa: E402
 from mavnav.config import load_config  # noqa: E402
-from mavnav.ingest import TlogSource  # noqa: E402
 from mavnav.pipeline import run  # noqa: E402
 
 
@@ -83,9 +81,7 @@ def main() -> None:
     cfg = load_config(None)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "live.tlog"
-        generate(path, args.minutes)
-        samples = list(TlogSource(path, cfg.ingest))
-        run(samples[:20000], cfg)  # warm-up: numba's compiled bank, imports
+        samples = simulated_samples(path, args.minutes, cfg)
         print(f"log: {args.minutes:g} min simulated, {len(samples)} samples")
         rows: dict[str, list] = {"base": [], "live": []}
         for _ in range(args.repeat):

@@ -28,12 +28,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from audit import generate  # noqa: E402  (bench/audit.py: the same simulated flight)
-from preamble import announce  # noqa: E402
+from preamble import announce, simulated_samples  # noqa: E402
 
 from mavnav.cli.viewer_options import ViewerProcess, free_port, make_viewer_sinks, rerun_executable  # noqa: E402
 from mavnav.config import load_config  # noqa: E402
-from mavnav.ingest import TlogSource  # noqa: E402
 from mavnav.pipeline import run  # noqa: E402
 
 
@@ -56,9 +54,7 @@ def main() -> None:
     cfg = load_config(None)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "replay.tlog"
-        generate(path, args.minutes)
-        samples = list(TlogSource(path, cfg.ingest))
-        run(samples[:20000], cfg)  # warm-up: numba's compiled bank, imports
+        samples = simulated_samples(path, args.minutes, cfg)
         port = free_port()
         server = ViewerProcess([rerun_executable(), "--serve-grpc", "--bind", "127.0.0.1", "--port", str(port)],
                                "127.0.0.1", (port,))
