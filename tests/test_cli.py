@@ -21,6 +21,7 @@ from click.testing import CliRunner
 from mavnav.cli import main
 from mavnav.ingest import TlogSource
 from mavnav.sinks.csv_sink import COLUMNS
+from tests.support.live import free_udp_port
 from tests.support.paths import SITL_LOGS
 
 pytestmark = [pytest.mark.integration]
@@ -157,14 +158,6 @@ def tlog_records(path):
         out.append((t, data[i + 8:i + 8 + n]))
         i += 8 + n
     return out
-
-
-def free_udp_port():
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 @pytest.mark.slow

@@ -116,11 +116,20 @@ SPEED = 8.0
 
 
 def free_udp_port() -> int:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
+    return free_udp_ports(1)[0]
+
+
+def free_udp_ports(n: int) -> list:
+    """``n`` distinct free UDP ports of 127.0.0.1 (all held until all are
+    chosen: ports asked for one by one may come back the same)."""
+    socks = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(n)]
+    try:
+        for s in socks:
+            s.bind(("127.0.0.1", 0))
+        return [s.getsockname()[1] for s in socks]
+    finally:
+        for s in socks:
+            s.close()
 
 
 def tlog_frames(path: Path, seconds: float):
