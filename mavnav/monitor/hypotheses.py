@@ -1179,7 +1179,7 @@ class HypothesisLogic:
             self.baro_excluded_us = t
             # a faulty baro is taken out of every aux channel, not only the fusion,
             # and what it pulled into their speed is let go
-            for c, aux_name in AUX:
+            for c, _ in AUX:
                 if self.bank.baro_on[c]:
                     self.bank.open_speed(c, self.m.baro_exclusion_vel_sigma_mps ** 2)
             self.bank.baro_on[GNSS] = self.bank.baro_on[RNG] = False
