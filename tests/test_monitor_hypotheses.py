@@ -352,7 +352,7 @@ def test_a_window_test_is_suspect_on_two_readings_in_a_row_not_one():
 
     def reading(t_us, stat):
         ex.update(t_us, stat > thr, stat > cfg.monitor.suspect_frac * thr)
-        return logic._graded("baro/Doppler", stat, thr, ex, t_us, frozenset((B, G)), "baro moved").level
+        return logic._graded("baro/Doppler", stat, thr, ex, t_us, frozenset((B, G)), lambda: "baro moved").level
 
     assert reading(0, over) == "pass"  # one sample past the threshold
     assert reading(200_000, low) == "pass"

@@ -40,7 +40,7 @@ import dataclasses
 import math
 import statistics
 from collections import deque
-from typing import Optional
+from typing import Callable, Optional
 
 import numpy as np
 
@@ -476,9 +476,10 @@ class HypothesisLogic:
             return None
         thr = self._drift_thr()
         e = d.last_slope_mps
-        txt = (f"GNSS altitude drifted {e:+.2f} m/s against the baro over {d.last_span_s:.0f} s "
-               f"(threshold {thr:.2f} m/s)" if abs(e) > self.m.suspect_frac * thr else "")  # a pass has none
-        return self._graded("GNSS/baro drift", abs(e), thr, self.drift_ex, t, frozenset((GNSS_S, BARO_S)), txt,
+        def why() -> str:
+            return (f"GNSS altitude drifted {e:+.2f} m/s against the baro over {d.last_span_s:.0f} s "
+                    f"(threshold {thr:.2f} m/s)")
+        return self._graded("GNSS/baro drift", abs(e), thr, self.drift_ex, t, frozenset((GNSS_S, BARO_S)), why,
                             fail_scale_m=abs(e) * d.last_span_s, sizes={GNSS_S: 0.0})
 
     def _doppler_verdict(self, t: int) -> Optional[Verdict]:
@@ -494,12 +495,13 @@ class HypothesisLogic:
             return None
         thr = self._window_thr(d, "doppler")
         e = d.last_e_m
-        txt = (f"GNSS altitude moved {e:+.2f} m against its own Doppler velocity over "
-               f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m)" if abs(e) > self.m.suspect_frac * thr else "")
-        return self._graded("GNSS/Doppler", abs(e), thr, self.doppler_ex, t, frozenset((GNSS_S,)), txt,
+        def why() -> str:
+            return (f"GNSS altitude moved {e:+.2f} m against its own Doppler velocity over "
+                    f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m)")
+        return self._graded("GNSS/Doppler", abs(e), thr, self.doppler_ex, t, frozenset((GNSS_S,)), why,
                             sizes={GNSS_S: 0.0})
 
-    def _graded(self, test: str, stat: float, thr: float, ex, t: int, implicates: frozenset, txt: str,
+    def _graded(self, test: str, stat: float, thr: float, ex, t: int, implicates: frozenset, why: Callable[[], str],
                 clears: frozenset = frozenset(), fail_scale_m: Optional[float] = None, sizes: Optional[dict] = None,
                 pass_scale_m: float = 0.0) -> Verdict:
         """A windowed test's verdict from its statistic: fail past the threshold
@@ -507,12 +509,13 @@ class HypothesisLogic:
         business), suspect past suspect_frac of it on two samples in a row
         (consecutive windows share all but their end samples, so one reading
         past it is one noisy sample), else pass, ruling out ``clears`` below
-        clear_frac of it."""
+        clear_frac of it. ``why()`` is the text of a failure or a suspicion (a
+        pass has none: it is built only for those)."""
         if stat > thr and ex.persistent(t, self.persist_us):
-            return Verdict(test, "fail", implicates, stat=stat, threshold=thr, text=txt,
+            return Verdict(test, "fail", implicates, stat=stat, threshold=thr, text=why(),
                            scale_m=stat if fail_scale_m is None else fail_scale_m, sizes=sizes)
         if stat > self.m.suspect_frac * thr and ex.near >= 2:
-            return Verdict(test, "suspect", implicates, stat=stat, threshold=thr, text=txt)
+            return Verdict(test, "suspect", implicates, stat=stat, threshold=thr, text=why())
         clear = clears if stat < self.m.clear_frac * thr else frozenset()
         return Verdict(test, "pass", implicates, clear, stat, thr, scale_m=pass_scale_m)
 
@@ -527,10 +530,10 @@ class HypothesisLogic:
             return None
         thr = self._window_thr(d, "baro_doppler")
         e = d.last_e_m
-        txt = (f"baro moved {e:+.2f} m against the GNSS Doppler velocity over "
-               f"{d.last_span_s:.0f} s (threshold {thr:.2f} m; vehicle moved {d.last_disp_m:+.1f} m)"
-               if abs(e) > self.m.suspect_frac * thr else "")
-        return self._graded("baro/Doppler", abs(e), thr, self.baro_doppler_ex, t, frozenset((BARO_S, GNSS_S)), txt)
+        def why() -> str:
+            return (f"baro moved {e:+.2f} m against the GNSS Doppler velocity over "
+                    f"{d.last_span_s:.0f} s (threshold {thr:.2f} m; vehicle moved {d.last_disp_m:+.1f} m)")
+        return self._graded("baro/Doppler", abs(e), thr, self.baro_doppler_ex, t, frozenset((BARO_S, GNSS_S)), why)
 
     def _push_ins_doppler(self, ep: EpochInputs) -> None:
         d = self.ins_doppler
@@ -574,9 +577,10 @@ class HypothesisLogic:
         D = self.m.ins_window_s  # its shortest span: the mapping never favours the coarser test
         to_ins_m = 0.5 * D * D / W
         to_pos_m = 0.5 * W  # a GNSS velocity error e over the window: e W / 2 of position
-        txt = (f"INS velocity changed {-e:+.2f} m/s against the GNSS Doppler over "
-               f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m/s)" if abs(e) > self.m.suspect_frac * thr else "")
-        return self._graded("INS/Doppler", abs(e), thr, self.insdop_ex, t, frozenset((INS_S, GNSS_S)), txt,
+        def why() -> str:
+            return (f"INS velocity changed {-e:+.2f} m/s against the GNSS Doppler over "
+                    f"{self.m.doppler_window_s:g} s (threshold {thr:.2f} m/s)")
+        return self._graded("INS/Doppler", abs(e), thr, self.insdop_ex, t, frozenset((INS_S, GNSS_S)), why,
                             clears=frozenset((INS_S,)), fail_scale_m=abs(e) * to_pos_m,
                             sizes={INS_S: abs(e) * to_ins_m}, pass_scale_m=thr * to_ins_m)
 
@@ -730,15 +734,15 @@ class HypothesisLogic:
         stat = abs(e)
         if stat <= m.suspect_frac * thr:
             sc.push(t, e / sigma)  # frozen while the test leans towards a fault
-        txt = (f"baro moved {e:+.2f} m against the INS over {D:.1f} s (threshold {thr:.2f} m)"
-               if stat > m.suspect_frac * thr or stat > thr else "")  # a pass carries no text
+        def why() -> str:
+            return f"baro moved {e:+.2f} m against the INS over {D:.1f} s (threshold {thr:.2f} m)"
         # graded as the window tests are (its windows overlap as theirs do)
         self.ins_ex.update(t, stat > thr, stat > m.suspect_frac * thr)
         # a second difference is blind to a ramp: a pass rules out the INS, never the
         # baro; and with the baro excluded it rules out nothing (its reference is out,
         # and the channel's accelerometer estimate has followed whichever was wrong)
         clears = frozenset((INS_S,)) if rej == 0 and BARO_INS_S not in self.excluded else frozenset()
-        return self._graded("baro/INS", stat, thr, self.ins_ex, t, implicates, txt, clears=clears,
+        return self._graded("baro/INS", stat, thr, self.ins_ex, t, implicates, why, clears=clears,
                             pass_scale_m=thr)  # V_s follows a slow error in part
 
     def _jump_verdict(self, t: int, implicates: frozenset) -> Optional[Verdict]:
