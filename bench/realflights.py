@@ -505,7 +505,7 @@ def report(groups: Dict[str, List[Path]], results: List[dict], wall: float, args
                 al = [x[m].get("alert_s", math.nan) for x in rows]
                 n_al = sum(a == a for a in al)
                 med_al, _ = tta_stats(al)
-                in_t = sum(a == a and a <= ALERT_TARGET_S.get(x["fault"], math.inf) for a, x in zip(al, rows))
+                in_t = sum(in_target(x, m) for x in rows)
                 cells.append(f"{det}/{len(rows)} / {fmt(med)} / {n_al} / {fmt(med_al)} / {in_t} / {iso} / {wrong} / {haz}")
             p(f"| {name} | {len(rows)} | " + " | ".join(cells) + " |")
         p("")
@@ -517,6 +517,12 @@ def report(groups: Dict[str, List[Path]], results: List[dict], wall: float, args
           + ", ".join(f"{m} {sum(bool(x[m].get('wrong_by_fault', x[m]['wrong'])) for x in faulted)}"
                       for m in CONTENDERS) + ".")
     return "\n".join(lines) + "\n"
+
+
+def in_target(row: dict, contender: str) -> bool:
+    """Whether a faulted run's faulty source left the output within its fault's target."""
+    a = row[contender].get("alert_s", math.nan)
+    return a == a and a <= ALERT_TARGET_S.get(row["fault"], math.inf)
 
 
 def in_use_lines(applicable: List[dict]) -> str:
@@ -534,8 +540,7 @@ def in_use_lines(applicable: List[dict]) -> str:
             continue
         cells = []
         for m in CONTENDERS:
-            hit = [(a := x[m].get("alert_s", math.nan)) == a and a <= ALERT_TARGET_S.get(x["fault"], math.inf)
-                   for x in rows]
+            hit = [in_target(x, m) for x in rows]
             use = [x[m].get("in_use", True) for x in rows]
             cells.append(f"{sum(use)} / {sum(h and u for h, u in zip(hit, use))} / {sum(hit)} of {len(rows)}")
         out.append(f"| {name} | " + " | ".join(cells) + " |")

@@ -10,7 +10,8 @@ which message an answer is for), and checks each COMMAND_ACK:
   ``attempts`` times in all (``confirmation`` counts the retries);
 * DENIED, UNSUPPORTED, FAILED, CANCELLED: refused, reported, not retried.
 
-The target is the first autopilot heard (the normaliser's vehicle rule,
+The target is the autopilot of the system the monitor watches (``--sysid``),
+or without it the first autopilot heard (the normaliser's vehicle rule,
 :func:`mavnav.ingest.systems.is_vehicle_heartbeat`: autopilot not
 MAV_AUTOPILOT_INVALID, type not a GCS; and not an onboard controller either);
 nothing is sent before one is heard. Timing is on the wall clock (the
