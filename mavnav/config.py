@@ -305,6 +305,9 @@ class AdaptiveFeatures(_Section):
     ins_doppler_check: bool = True  # the INS's velocity change against the Doppler's (monitor/doppler.py)
     baro_doppler_check: bool = True  # the baro's change against the Doppler's integral (alerts only)
     gnss_drift_check: bool = True  # without a Doppler: the GNSS's drift rate against the baro (monitor/drift.py)
+    # the protection level also bounds a fault of each source in the output that the
+    # channel comparison cannot see (solution separation, monitor/protection.py)
+    separation_protection: bool = True
 
 
 class MonitorConfig(_Section):
@@ -372,6 +375,11 @@ class MonitorConfig(_Section):
     # Integrity: vertical protection level k * sigma against the alert limit.
     alert_limit_m: float = Field(4.0, gt=0)
     integrity_risk: float = Field(1e-5, gt=0, lt=0.5)
+    # The prior probability that a height source is faulty while in the output
+    # (features.separation_protection): a fault of source i goes undetected
+    # with probability integrity_risk / fault_prior_prob, which sets the
+    # missed-detection quantile of its protection level (1e-3: 3.29 sigma).
+    fault_prior_prob: float = Field(1e-2, gt=0, le=1)
     # Height sensors (baro, GNSS, rangefinder) that must be in use beside the
     # INS for integrity: with the baro alone, a slow baro error passes every
     # test against the INS (0.5 m/s ramps on the real baro-only flights were

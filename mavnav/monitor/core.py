@@ -270,7 +270,10 @@ class Monitor:
             ))
         sources = dict(d.sources)
         sources[INPUT] = self.input.status()
-        vpl = self.k_vpl * d.sigma_fused_m if d.sigma_fused_m == d.sigma_fused_m else math.inf
+        if d.vpl_m == d.vpl_m:
+            vpl = d.vpl_m
+        else:
+            vpl = self.k_vpl * d.sigma_fused_m if d.sigma_fused_m == d.sigma_fused_m else math.inf
         # A source that is merely unavailable (no data) does not degrade the
         # overall state by itself: the protection level says whether what is
         # left still supports the alert limit.

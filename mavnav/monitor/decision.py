@@ -20,6 +20,9 @@ class Decision:
     height_fused_m: float
     sigma_fused_m: float
     events: list = field(default_factory=list)
+    # the vertical protection level when the logic bounds the faults it cannot
+    # see (NaN: the fault-free bound from sigma_fused_m, the paper's)
+    vpl_m: float = math.nan
 
 
 def pair_reports(bank: ChannelBank, available, thresholds) -> tuple[PairReport, ...]:

@@ -58,6 +58,7 @@ from .fusion import fuse_heights
 from .inscheck import InsBaroCheck
 from .kink import KinkSeries, MeanSquare, isolate, kink_fit, onsets
 from .levels import chi2_gate, normal_k
+from .protection import protection_level
 from .rawcheck import RawAuxCheck
 from .scale import ResidualScale
 from .table import Judgement, judge
@@ -122,6 +123,8 @@ class HypothesisLogic:
         self.f = m.features
         self.bank = bank
         self.k_cmp = normal_k(m.false_alarm_prob)
+        self.k_ff = normal_k(m.integrity_risk)
+        self.k_md = normal_k(min(m.integrity_risk / m.fault_prior_prob, 1.0))
         self.gate = chi2_gate(m.gate_prob)
         self.baro_gate = chi2_gate(m.baro_jump_prob)
         self.persist_us = int(m.persist_s * 1e6)
@@ -1010,7 +1013,7 @@ class HypothesisLogic:
         else:
             self.isolated_src, self.isolated_since = frozenset(), None
         events = [ev for ev in (self._source_state(name, t, j) for name in SENSOR_SOURCES) if ev is not None]
-        h, sigma, used = self._fuse(j, avail)
+        h, sigma, used, vpl = self._fuse(j, avail)
         if self.f.validated_feedback:
             self._feedback(t, avail)
         statuses = {}
@@ -1019,7 +1022,7 @@ class HypothesisLogic:
             statuses[name] = trk.status(window_stat=stat, window_low=math.nan, window_high=hi,
                                         rejected=self.rejections[name].rejected)
         return Decision(available=avail, used=tuple(used), pairs=pairs, sources=statuses,
-                        height_fused_m=h, sigma_fused_m=sigma, events=events)
+                        height_fused_m=h, sigma_fused_m=sigma, events=events, vpl_m=vpl)
 
     def _advance(self, ep: EpochInputs, t: int) -> None:
         """The tests' own state after the filter step: windows, raw checks, the
@@ -1080,8 +1083,10 @@ class HypothesisLogic:
         return Judgement("ambiguous", j.candidates, j.sources,
                          f"cannot isolate: {j.reason}; the baro at {hz:.1f} Hz is too sparse to judge it")
 
-    def _fuse(self, j: Judgement, avail) -> tuple[float, float, tuple]:
-        """The fused height of the channels the evidence clears (NaN: none)."""
+    def _fuse(self, j: Judgement, avail) -> tuple[float, float, tuple, float]:
+        """The fused height of the channels the evidence clears (NaN: none),
+        its sigma, the channels used and the protection level (NaN: the
+        fault-free bound, when separation_protection is off)."""
         bank = self.bank
         cleared = {n: self.trackers[n].state == "nominal" or
                    (self.trackers[n].state == "caution" and n not in self._held(j)) for n in SENSOR_SOURCES}
@@ -1090,10 +1095,13 @@ class HypothesisLogic:
                 avail[RNG] and cleared[RANGEFINDER_S] and (baro_ok or not bank.baro_on[RNG]),
                 baro_ok)
         idx = [c for c in range(3) if used[c]]
-        h, sigma = math.nan, math.nan
+        h, sigma, vpl = math.nan, math.nan, math.nan
         if idx:
-            h, sigma, _ = fuse_heights([bank.x[c, 0] for c in idx], bank.height_cov(idx), self.f.inverse_variance)
-        return h, sigma, used
+            cov = bank.height_cov(idx)
+            h, sigma, w = fuse_heights([bank.x[c, 0] for c in idx], cov, self.f.inverse_variance)
+            if self.f.separation_protection:
+                vpl, _ = protection_level(sigma, cov, w, self.k_ff, self.k_cmp, self.k_md)
+        return h, sigma, used, vpl
 
     def _restart_held(self, t: int, j: Judgement, aux) -> Judgement:
         """An unresolved failure held ``hold_restart_s``: the sequential tests in

@@ -1,0 +1,77 @@
+"""The vertical protection level by solution separation: the fused height's
+error bound under no fault and under a fault of each height source that the
+channel comparison cannot see.
+
+``k_ff * sigma_0`` bounds the fused height's error with every source healthy.
+That is not enough: a channel re-initialised from another, or one whose
+sensor has barely anchored it, disagrees with the rest by little whatever
+the rest does, so the comparison cannot see a fault in them. For each source
+whose channel is in the output, the subset solution without that channel
+(the BLUE of the other used channels) differs from the full one by
+``Delta_i``; the comparison sees a fault of source ``i`` once ``|Delta_i|``
+passes ``k_fa * sd(Delta_i)``, so the largest undetected error of the full
+solution is bounded by
+
+    PL_i = k_fa * sd(Delta_i) + k_md * sigma_i
+
+(``sigma_i`` the subset's own error sd, ``k_md`` its missed-detection
+quantile; the ARAIM form). A source whose channel is the only one used has
+no subset: nothing can see its fault, and its level is infinite. The
+protection level is the largest of ``k_ff * sigma_0`` and every ``PL_i``.
+
+Pure: the channels' height covariance in, the levels out.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+from .fusion import fuse_heights
+
+
+def _weights(keep: Sequence[int], cov: Sequence[Sequence[float]]) -> list[float]:
+    """BLUE weights of the channels ``keep`` (indices into ``cov``), zero elsewhere."""
+    sub = [[cov[a][b] for b in keep] for a in keep]
+    _, _, w = fuse_heights([0.0] * len(keep), sub, True)
+    out = [0.0] * len(cov)
+    for k, c in enumerate(keep):
+        out[c] = w[k]
+    return out
+
+
+def _quad(w: Sequence[float], cov: Sequence[Sequence[float]]) -> float:
+    n = len(w)
+    return max(sum(w[a] * w[b] * cov[a][b] for a in range(n) for b in range(n)), 0.0)
+
+
+def separation_levels(cov: Sequence[Sequence[float]], weights: Sequence[float], k_fa: float,
+                      k_md: float) -> list[float]:
+    """``PL_i`` for the fault of each channel of the output, in order: ``cov``
+    is the height error covariance of the channels in the output and
+    ``weights`` their weights in the fused height."""
+    n = len(weights)
+    out = []
+    for c in range(n):
+        rest = [k for k in range(n) if k != c]
+        if not rest:
+            out.append(math.inf)
+            continue
+        wi = _weights(rest, cov)
+        sd_delta = math.sqrt(_quad([a - b for a, b in zip(weights, wi)], cov))
+        out.append(k_fa * sd_delta + k_md * math.sqrt(_quad(wi, cov)))
+    return out
+
+
+def protection_level(sigma_fused_m: float, cov: Sequence[Sequence[float]], weights: Sequence[float],
+                     k_ff: float, k_fa: float, k_md: float) -> tuple[float, int]:
+    """The vertical protection level, and the index (into ``cov``) of the
+    channel whose fault hypothesis sets it (-1: the fault-free bound
+    ``k_ff * sigma_fused_m``). No channel in the output: infinite."""
+    if sigma_fused_m != sigma_fused_m or not weights:
+        return math.inf, -1
+    vpl, limit = k_ff * sigma_fused_m, -1
+    for c, pl in enumerate(separation_levels(cov, weights, k_fa, k_md)):
+        if not pl <= vpl:
+            vpl, limit = pl, c
+    return vpl, limit
