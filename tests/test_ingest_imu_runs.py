@@ -110,21 +110,35 @@ def test_pipeline_through_runs_is_the_per_sample_fold(name, tmp_path):
 
 
 @pytest.mark.realdata
-def test_a_faulted_source_is_read_sample_by_sample():
-    """FaultedSource passes its attributes through (``runs`` too): the faults act on
-    each sample, so the pipeline must not read the source beneath through its runs."""
+@pytest.mark.parametrize("fault,whole", [("accel_bias_step:magnitude=0.5", False),
+                                         ("baro_step:magnitude=5", True),
+                                         ("baro_ramp:magnitude=0.5", True)])
+def test_a_faulted_source_gives_runs_that_are_its_samples(fault, whole):
+    """``--inject`` on an onboard log: FaultedSource's runs expand to exactly
+    the samples of iterating it, IMU runs passing whole where the fault cannot
+    touch the IMU and going through the fault sample by sample where it can."""
     from mavnav.sim.effects import FaultedSource
     from mavnav.sim.faults import parse_faults
 
     p, rec = _record("frs_gps_interference.ulg")
     cfg = config_from_dict({})
-    inner = _Counting(p, cfg.ingest, record=rec)
     onset = int(rec.imu.t_us[0] * 1e-6) + 30
-    src = FaultedSource(inner, parse_faults([f"accel_bias_step:onset={onset},duration=20,magnitude=0.5"]))
-    sink = _Recorder(runs=True)
-    run(src, cfg, [AuditSink(), sink])
-    assert not hasattr(inner, "run_items")
-    assert src.injector.report()[0]["samples_modified"] > 1000
+    faults = parse_faults([f"{fault},onset={onset},duration=20"])
+    per_sample = FaultedSource(OnboardSource(p, cfg.ingest, record=rec), faults)
+    ref = list(per_sample)
+    modified = per_sample.injector.report()[0]["samples_modified"]
+    assert modified > 20
+    src = FaultedSource(OnboardSource(p, cfg.ingest, record=rec), faults)
+    items = list(src.runs())
+    assert any(type(s) is ImuRun for s in items) == whole
+    assert _expanded(items) == ref
+    assert src.injector.report()[0]["samples_modified"] == modified
+    # and the pipeline reads them: the same audit either way
+    a, b = AuditSink(), AuditSink()
+    run(ref, cfg, [a])
+    run(FaultedSource(OnboardSource(p, cfg.ingest, record=rec), faults), cfg, [b])
+    assert (a.alarms, a.availability(), a.epochs) == (b.alarms, b.availability(), b.epochs)
+    assert a.input_counts == b.input_counts
 
 
 @pytest.mark.realdata

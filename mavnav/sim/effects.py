@@ -58,6 +58,7 @@ from ..samples import (
     Rejected,
     SpecificForceUp,
 )
+from ..ingest.onboard.imurun import ImuRun
 from ..sensors import AUTOPILOT_STREAM, BARO_STREAM, GNSS_STREAM, IMU_STREAM, RANGE_STREAM
 from .scenario import Fault
 
@@ -267,6 +268,11 @@ class SampleFaults:
         return dataclasses.replace(s, range_m=reading, height_agl_m=reading * cos_t)
 
 
+# faults whose effects touch only their own height sensor's samples (nothing
+# of the IMU, the clock or the link): an IMU run passes them unchanged
+_HEIGHT_SENSOR_FAULTS = ("gnss_", "baro_", "rng_")
+
+
 class FaultedSource:
     """A source with faults applied to its samples; ``stats`` and the rest pass through."""
 
@@ -282,6 +288,26 @@ class FaultedSource:
         self.injector = inj = SampleFaults(self.faults)
         for s in self.source:
             yield from inj.feed(s)
+
+    def runs(self):
+        """The faulted stream with the IMU samples in runs, where the source
+        gives runs (an onboard log; :func:`mavnav.pipeline.run` reads them):
+        runs pass through whole when no fault can touch an IMU sample (the
+        height sensors' faults), else each run goes through the faults sample
+        by sample. Either way the samples are those of iterating this source."""
+        if not callable(getattr(type(self.source), "runs", None)):
+            yield from iter(self)
+            return
+        self.injector = inj = SampleFaults(self.faults)
+        whole = all(f.kind.startswith(_HEIGHT_SENSOR_FAULTS) for f in self.faults)
+        for s in self.source.runs():
+            if type(s) is not ImuRun:
+                yield from inj.feed(s)
+            elif whole:
+                yield s
+            else:
+                for x in s.samples(s.lo, s.hi):
+                    yield from inj.feed(x)
 
 
 __all__ = ["height_error_m", "keeps", "spikes", "out_of_range_reading_m", "SampleFaults", "FaultedSource"]
