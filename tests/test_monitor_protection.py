@@ -72,3 +72,21 @@ def test_non_blue_weights_are_read_as_given():
     pl = separation_levels(cov, [0.5, 0.5], K_FA, K_MD)
     # without channel 0: Delta = 0.5 h0 - 0.5 h1, var = 0.25 (0.25 + 4)
     assert pl[0] == pytest.approx(K_FA * math.sqrt(0.25 * 4.25) + K_MD * 2.0)
+
+
+def test_subset_weights_are_the_subsets_blue():
+    import random
+
+    from mavnav.monitor.protection import _subset_weights
+
+    rnd = random.Random(7)
+    for _ in range(50):
+        a = [[rnd.gauss(0, 1) for _ in range(3)] for _ in range(3)]
+        cov = [[sum(a[i][k] * a[j][k] for k in range(3)) + (0.1 if i == j else 0.0) for j in range(3)]
+               for i in range(3)]
+        for drop in range(3):
+            keep = [k for k in range(3) if k != drop]
+            _, _, w = fuse_heights([0.0, 0.0], [[cov[i][j] for j in keep] for i in keep], True)
+            got = _subset_weights(cov, drop)
+            assert got[drop] == 0.0
+            assert [got[k] for k in keep] == pytest.approx(w, rel=1e-9, abs=1e-12)

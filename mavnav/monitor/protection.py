@@ -27,16 +27,25 @@ from __future__ import annotations
 import math
 from typing import Sequence
 
-from .fusion import fuse_heights
 
 
-def _weights(keep: Sequence[int], cov: Sequence[Sequence[float]]) -> list[float]:
-    """BLUE weights of the channels ``keep`` (indices into ``cov``), zero elsewhere."""
-    sub = [[cov[a][b] for b in keep] for a in keep]
-    _, _, w = fuse_heights([0.0] * len(keep), sub, True)
-    out = [0.0] * len(cov)
-    for k, c in enumerate(keep):
-        out[c] = w[k]
+def _subset_weights(cov: Sequence[Sequence[float]], drop: int) -> list[float]:
+    """BLUE weights of every channel of ``cov`` but ``drop`` (zero there); at
+    most two remain, so in closed form (one: itself; two: the 2x2 BLUE)."""
+    n = len(cov)
+    keep = [k for k in range(n) if k != drop]
+    out = [0.0] * n
+    if len(keep) == 1:
+        out[keep[0]] = 1.0
+        return out
+    a, b = keep
+    paa, pbb, pab = cov[a][a], cov[b][b], cov[a][b]
+    den = paa + pbb - 2.0 * pab
+    if not den > 0.0:  # the two are one: either will do
+        out[a] = 1.0
+        return out
+    out[a] = (pbb - pab) / den
+    out[b] = (paa - pab) / den
     return out
 
 
@@ -48,16 +57,14 @@ def _quad(w: Sequence[float], cov: Sequence[Sequence[float]]) -> float:
 def separation_levels(cov: Sequence[Sequence[float]], weights: Sequence[float], k_fa: float,
                       k_md: float) -> list[float]:
     """``PL_i`` for the fault of each channel of the output, in order: ``cov``
-    is the height error covariance of the channels in the output and
-    ``weights`` their weights in the fused height."""
+    is the height error covariance of the channels in the output (at most
+    three) and ``weights`` their weights in the fused height."""
     n = len(weights)
+    if n == 1:
+        return [math.inf]
     out = []
     for c in range(n):
-        rest = [k for k in range(n) if k != c]
-        if not rest:
-            out.append(math.inf)
-            continue
-        wi = _weights(rest, cov)
+        wi = _subset_weights(cov, c)
         sd_delta = math.sqrt(_quad([a - b for a, b in zip(weights, wi)], cov))
         out.append(k_fa * sd_delta + k_md * math.sqrt(_quad(wi, cov)))
     return out
