@@ -306,7 +306,7 @@ class HypothesisLogic:
         self.baro_white_var = ep.baro_white_var_m2
         # judged in the channel held best by an aux sensor (its velocity is the
         # surest); the baro+INS channel alone trades a level error for velocity
-        r, S = self.bank.predicted_baro(self._anchor(), ep)
+        r, S = self.bank.predicted_baro(self._anchor(t), ep)
         if not (S == S and S > 0):
             self.jump = None  # the differencing restarted
             self.before_jump.clear()
@@ -587,11 +587,15 @@ class HypothesisLogic:
                             clears=frozenset((INS_S,)), fail_scale_m=abs(e) * to_pos_m,
                             sizes={INS_S: abs(e) * to_ins_m}, pass_scale_m=thr * to_ins_m)
 
-    def _anchor(self) -> int:
+    def _anchor(self, t: int) -> int:
+        """The channel a baro sample is judged in: the aux channel its sensor
+        holds best now (fresh: a channel coasting on the INS since its sensor
+        went quiet holds nothing), else the baro+INS channel."""
         best, best_var = BARO, math.inf
         for c, name in AUX:
             last = self.last_accept_us[c]
-            if name in self.excluded or last is None or self.trackers[name].state == "alarm":
+            if (name in self.excluded or last is None or t - last > self.stale_us[c]
+                    or self.trackers[name].state == "alarm"):
                 continue
             if self.bank.P[c, 0, 0] < best_var:
                 best, best_var = c, self.bank.P[c, 0, 0]
@@ -621,7 +625,7 @@ class HypothesisLogic:
                        if t - e[0] >= m.baro_jump_confirm_s * 1e6][-m.baro_jump_reference_samples:]
                 if old:
                     self.offset_scale.push(t, b - self._carried(old, t))
-                before.append((t, b, ins.pos_m, ins.vel_mps, float(self.bank.x[self._anchor(), 1])))
+                before.append((t, b, ins.pos_m, ins.vel_mps, float(self.bank.x[self._anchor(t), 1])))
             return
         j[3] = b - self._carried(j[5], t)
         j[4] += 1
