@@ -424,12 +424,7 @@ class ChannelBank:
         channel mid-flight, where the prior of the start would be far off."""
         self.x[c] = self.x[src]
         self.P[c] = self.P[src]
-        if extra_height_var:
-            e = extra_height_var
-            self.P[c, 0, 0] += e
-            self.P[c, DH, DH] += e
-            self.P[c, 0, DH] -= e
-            self.P[c, DH, 0] -= e
+        self.P[c, 0, 0] += extra_height_var
         self.baro_prev[c] = self.baro_prev[src]
         for j in range(N_CH):
             if j != c:

@@ -650,9 +650,7 @@ class HypothesisLogic:
 
     def _reinit_aux(self, c: int, name: str, t: int, sigma_m: float) -> None:
         """An aux channel back from coasting starts again from the baro+INS
-        channel, its level against the baro open (``ChannelBank.reinit_from``):
-        its own sensor sets it (a rangefinder back in range finds its ground; a
-        GNSS back after a gap is not made to agree with what the baro did in it)."""
+        channel, its height open (a rangefinder back in range finds its ground)."""
         self.bank.reinit_from(c, BARO, extra_height_var=self.m.max_channel_sigma_m ** 2 + sigma_m * sigma_m)
         self.cusum[name].clear()
         self.rejections[name].clear()
