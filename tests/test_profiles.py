@@ -28,10 +28,12 @@ def test_stricter_profile_is_unavailable_more_often():
     strictly, on a flight where the protection level comes between the two limits."""
     # the protection level comes between the two limits at the start, before the GNSS: where the baro is
     # the only height sensor, which by itself makes monitoring degraded (min_height_sensors); that rule is
-    # set aside here so that the profiles alone differ
+    # set aside here so that the profiles alone differ, and so is the separation protection level, which
+    # by itself makes one height sensor unprotected
     def overall(name):
         raw = yaml.safe_load((CONFIG / name).read_text())
         raw["monitor"]["min_height_sensors"] = 1
+        raw["monitor"].setdefault("features", {})["separation_protection"] = False
         return audit_file(LOG, config_from_dict(raw))["availability"]["overall"]
 
     cat1, cat23 = overall("profile_cat1.yaml"), overall("profile_cat2_3.yaml")
