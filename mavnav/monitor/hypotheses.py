@@ -51,7 +51,7 @@ from ..config import Config
 from ..sensors import BARO as BARO_S, BARO_INS as BARO_INS_S, GNSS as GNSS_S, INS as INS_S
 from ..sensors import RANGEFINDER as RANGEFINDER_S
 from .cusum import Cusum, threshold_for
-from .decision import Decision, diff_sigmas, pair_reports
+from .decision import Decision, pair_reports_scaled
 from .doppler import MIN_SPAN_FRAC, DopplerCheck, Exceedance, InsDopplerCheck
 from .drift import DriftCheck
 from .fusion import fuse_heights
@@ -768,7 +768,7 @@ class HypothesisLogic:
                            threshold=math.sqrt(self.baro_gate))
         return None
 
-    def _level_verdicts(self, t: int) -> list[Verdict]:
+    def _level_verdicts(self, t: int, avail: tuple) -> list[Verdict]:
         """The baro's level against each aux channel's ``H + dH`` (the channel's
         height held by its own sensor, and its estimate of the baro's bias): a
         slowly growing baro or aux error that the differenced baro row cannot see."""
@@ -776,7 +776,6 @@ class HypothesisLogic:
         if BARO_INS_S in self.excluded or self.last_baro_m is None or self._warm(BARO_INS_S, t):
             return out
         bank = self.bank
-        avail = self._available(t)
         for c, name in AUX:
             if not avail[c] or self._warm(name, t) or not bank.baro_on[c]:
                 self.level_since[c] = None
@@ -985,24 +984,23 @@ class HypothesisLogic:
     # ------------------------------------------------------------------ after the step
 
     def _available(self, t: int) -> tuple[bool, bool, bool]:
-        bank = self.bank
+        ph = self.bank.P[:, 0, 0].tolist()  # Python floats: the same comparisons without numpy scalars
         max_var = self.m.max_channel_sigma_m ** 2
-        out = []
-        for c, name in AUX:
-            last = self.last_accept_us[c]
-            out.append(name not in self.excluded and last is not None and t - last <= self.stale_us[c]
-                       and bank.P[c, 0, 0] <= max_var)
-        out.append(t - self.last_baro_us <= self.stale_baro_us and bank.P[BARO, 0, 0] <= max_var)
-        return tuple(out)  # type: ignore[return-value]
+        excluded = self.excluded
+        last_g, last_r = self.last_accept_us[GNSS], self.last_accept_us[RNG]
+        return (GNSS_S not in excluded and last_g is not None and t - last_g <= self.stale_us[GNSS]
+                and ph[GNSS] <= max_var,
+                RANGEFINDER_S not in excluded and last_r is not None and t - last_r <= self.stale_us[RNG]
+                and ph[RNG] <= max_var,
+                t - self.last_baro_us <= self.stale_baro_us and ph[BARO] <= max_var)
 
     def post(self, ep: EpochInputs, ep_used: EpochInputs, step) -> Decision:
         bank = self.bank
         t = ep.t_us
         self._advance(ep, t)
         avail = self._available(t)
-        thr = self.k_cmp * diff_sigmas(bank, self.sensor_var_floor)
-        pairs = pair_reports(bank, avail, thr)
-        verdicts, aux = self._verdicts(t)
+        pairs = pair_reports_scaled(bank, avail, self.sensor_var_floor, self.k_cmp)
+        verdicts, aux = self._verdicts(t, avail)
         live = live_hypotheses(self.excluded)
         j = judge(verdicts, live) if self.f.isolation_2of3 else self._paper_judge(verdicts, live)
         j = self.judgement = self._restart_held(t, self._slow_blame(j), aux)
@@ -1012,17 +1010,27 @@ class HypothesisLogic:
                 self.isolated_src, self.isolated_since = j.sources, t
         else:
             self.isolated_src, self.isolated_since = frozenset(), None
-        events = [ev for ev in (self._source_state(name, t, j) for name in SENSOR_SOURCES) if ev is not None]
+        events = []
+        for name in SENSOR_SOURCES:
+            ev = self._source_state(name, t, j)
+            if ev is not None:
+                events.append(ev)
         h, sigma, used, vpl = self._fuse(j, avail)
         if self.f.validated_feedback:
             self._feedback(t, avail)
+        # each source's displayed statistic: the first verdict of its test (_display_stat, once for all three)
+        shown: dict = {}
+        for v in verdicts:
+            if v.test not in shown:
+                shown[v.test] = v
         statuses = {}
+        rejections = self.rejections
         for name, trk in self.trackers.items():
-            stat, hi = self._display_stat(name, verdicts)
-            statuses[name] = trk.status(window_stat=stat, window_low=math.nan, window_high=hi,
-                                        rejected=self.rejections[name].rejected)
-        return Decision(available=avail, used=tuple(used), pairs=pairs, sources=statuses,
-                        height_fused_m=h, sigma_fused_m=sigma, events=events, vpl_m=vpl)
+            v = shown.get(_DISPLAY_TEST[name])
+            statuses[name] = trk.window_status(v.stat if v is not None else math.nan,
+                                               v.threshold if v is not None else math.nan,
+                                               rejections[name].rejected)
+        return Decision(avail, tuple(used), pairs, statuses, h, sigma, events, vpl)
 
     def _advance(self, ep: EpochInputs, t: int) -> None:
         """The tests' own state after the filter step: windows, raw checks, the
@@ -1039,9 +1047,9 @@ class HypothesisLogic:
             self._track_jump(t, ep.baro_m, *self.baro_judged)
             self.baro_judged = None
 
-    def _verdicts(self, t: int) -> tuple[list, tuple]:
+    def _verdicts(self, t: int, avail: tuple) -> tuple[list, tuple]:
         """Every test's verdict this epoch (and the aux innovation verdicts, which
-        the hold rule needs)."""
+        the hold rule needs); ``avail``: :meth:`_available` at ``t``."""
         envelope = self._envelope_verdict(t)
         self.envelope_failing = envelope is not None  # also holds back the rangefinder's readmission
         if RANGEFINDER_S in self.excluded:
@@ -1055,7 +1063,7 @@ class HypothesisLogic:
         baro_doppler = self._baro_doppler_verdict(t)
         verdicts = [v for v in (*aux, *ins_tests, self._raw_verdict(), envelope, self._doppler_verdict(t),
                                 baro_doppler, drift)
-                    if v is not None] + self._level_verdicts(t)
+                    if v is not None] + self._level_verdicts(t, avail)
         if self.f.kink_isolation and self.slow_imu_hz is None:  # the INS witnesses the kinks
             verdicts += self._kink_verdicts(t, aux, (drift, baro_doppler))
         return verdicts, aux
