@@ -118,6 +118,15 @@ class Monitor:
                 q.popleft()
             eps = self.builder._on_imu(t_us, s.f_up_mps2)  # EpochBuilder.push's IMU branch
             return self._epochs(eps) if eps else eps
+        kind = type(s)
+        if kind is AutopilotHeight:  # the next most (onboard logs: about two per epoch): no epoch from it
+            self.raw[AUTOPILOT] = s.height_ref_m
+            return []
+        if kind is BaroHeight:  # one per epoch
+            self.raw[BARO_S] = s.height_ref_m
+            self.rates[BARO_S].push(s.t_us)
+            eps = self.builder._on_baro(s)  # EpochBuilder.push's baro branch
+            return self._epochs(eps) if eps else eps
         if isinstance(s, SpecificForceUp):
             self.rates[IMU_S].push(s.t_us)
         elif isinstance(s, BaroHeight):

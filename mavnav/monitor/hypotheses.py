@@ -78,6 +78,9 @@ _ONLY = {name: frozenset((name,)) for _, name in AUX}
 _WITH_BARO = {name: frozenset((name, BARO_S)) for _, name in AUX}
 _WITH_BARO_INS = {name: frozenset((name, BARO_S, INS_S)) for _, name in AUX}
 _WITH_INS = {name: frozenset((name, INS_S)) for _, name in AUX}
+_BARO_AND_INS = frozenset((BARO_S, INS_S))
+_INS_ONLY = frozenset((INS_S,))
+_NOTHING: frozenset = frozenset()
 
 
 def _last(q: deque, n: int) -> list:
@@ -312,18 +315,19 @@ class HypothesisLogic:
             self.before_jump.clear()
             return math.inf
         nu2 = r * r / S
-        self.last_z[BARO_INS_S] = r / math.sqrt(S)
+        sd = math.sqrt(S)
+        z = self.last_z[BARO_INS_S] = r / sd
         # the jump gate at the baro row's measured scatter (never below the model's)
         sc = self.scale[BARO_S]
         reject = self.f.innovation_gating and nu2 > self.baro_gate * sc.sd ** 2
         if not reject and self.jump is None:
-            sc.push(t, self.last_z[BARO_INS_S])
-        if not self._warm(BARO_INS_S, t):
+            sc.push(t, z)
+        if not t < self.warm_until[BARO_INS_S]:  # not self._warm(BARO_INS_S, t)
             self.rejections[BARO_INS_S].push(t, reject)
-            self.baro_judged = (r, math.sqrt(S), reject)
+            self.baro_judged = (r, sd, reject)
         if reject:
             changes["baro_restart"] = True  # no baro row anywhere; differencing restarts
-        return abs(self.last_z[BARO_INS_S])
+        return abs(z)
 
     def _latest_baro_z(self, t: int) -> float:
         """No baro sample in this epoch (each sample has its own): the latest
@@ -610,15 +614,26 @@ class HypothesisLogic:
         j = self.jump
         if j is None:
             before = self.before_jump
-            while before and t - before[0][0] > 1e6 * max(1.0, 2 * m.baro_jump_confirm_s):
+            keep_us = 1e6 * max(1.0, 2 * m.baro_jump_confirm_s)
+            while before and t - before[0][0] > keep_us:
                 before.popleft()
             if reject and before:
                 ref = tuple(_last(before, m.baro_jump_reference_samples))
                 size = b - self._carried(ref, t)
                 self.jump = [t, size, sd, size, 0, ref]
             elif not reject:
-                old = [e for e in _last(before, OFFSET_SEARCH_SAMPLES)
-                       if t - e[0] >= m.baro_jump_confirm_s * 1e6][-m.baro_jump_reference_samples:]
+                # of the last OFFSET_SEARCH_SAMPLES, the last baro_jump_reference_samples
+                # that are baro_jump_confirm_s old: the first that many found walking back
+                confirm_us = m.baro_jump_confirm_s * 1e6
+                n_ref = m.baro_jump_reference_samples
+                old = []
+                for k in range(1, min(OFFSET_SEARCH_SAMPLES, len(before)) + 1):
+                    e = before[-k]
+                    if t - e[0] >= confirm_us:
+                        old.append(e)
+                        if len(old) == n_ref:
+                            break
+                old.reverse()
                 if old:
                     self.offset_scale.push(t, b - self._carried(old, t))
                 before.append((t, b, ins.pos_m, ins.vel_mps, float(self.bank.x[self._anchor(), 1])))
@@ -724,7 +739,7 @@ class HypothesisLogic:
         if self._warm(BARO_INS_S, t) or t - self.last_baro_us > self.stale_baro_us:
             return None
         m = self.m
-        implicates = frozenset((BARO_S, INS_S))
+        implicates = _BARO_AND_INS
         rej = self.rejections[BARO_INS_S].rejected
         v = self._jump_verdict(t, implicates)
         if v is not None:
@@ -744,7 +759,7 @@ class HypothesisLogic:
         # a second difference is blind to a ramp: a pass rules out the INS, never the
         # baro; and with the baro excluded it rules out nothing (its reference is out,
         # and the channel's accelerometer estimate has followed whichever was wrong)
-        clears = frozenset((INS_S,)) if rej == 0 and BARO_INS_S not in self.excluded else frozenset()
+        clears = _INS_ONLY if rej == 0 and BARO_INS_S not in self.excluded else _NOTHING
         return self._graded("baro/INS", stat, thr, self.ins_ex, t, implicates, why, clears=clears,
                             pass_scale_m=thr)  # V_s follows a slow error in part
 
@@ -907,11 +922,18 @@ class HypothesisLogic:
         if ts - self.kink_learned_s < m.kink_learn_interval_s or self.judgement.situation != "clear" or self.jump:
             return
         self.kink_learned_s = ts
+        first_s = -m.kink_min_fill_frac * m.kink_window_s
+        onset = None
         for key, ser in self.kink.items():
-            s, y = ser.arrays(ts)
-            if s.size < m.kink_min_samples or s[0] > -m.kink_min_fill_frac * m.kink_window_s:
+            # too few samples, or the window not filled: the test on the series itself
+            # (its first time less ts is the arrays' first element), before any array
+            times = ser.t
+            if len(times) < m.kink_min_samples or times[0] - ts > first_s:
                 continue
-            num, den = kink_fit(s, y, np.array([-m.kink_window_s / 3.0]), quadratic=key.endswith("-ins"))
+            s, y = ser.arrays(ts)
+            if onset is None:
+                onset = np.array([-m.kink_window_s / 3.0])
+            num, den = kink_fit(s, y, onset, quadratic=key.endswith("-ins"))
             if den[0] > 0:
                 self.kink_sd[key].push(ts, float(num[0]) / math.sqrt(float(den[0])))
 
