@@ -742,6 +742,8 @@ class EpochBuilder:
     def _aux_for(self, which: str, t_us: int) -> Optional[AuxMeasurement]:
         """Every pending sample of ``which`` not after ``t_us``, averaged into one measurement."""
         q = self._aux[which]
+        if not q or q[0].t_us > t_us:  # nothing pending for this epoch (most epochs)
+            return None
         limit = self._latency_us(which)
         n = n_v = 0
         sum_h = sum_age = sum_var = sum_v = 0.0

@@ -523,8 +523,8 @@ class HypothesisLogic:
                            scale_m=stat if fail_scale_m is None else fail_scale_m, sizes=sizes)
         if stat > self.m.suspect_frac * thr and ex.near >= 2:
             return Verdict(test, "suspect", implicates, stat=stat, threshold=thr, text=why())
-        clear = clears if stat < self.m.clear_frac * thr else frozenset()
-        return Verdict(test, "pass", implicates, clear, stat, thr, scale_m=pass_scale_m)
+        clear = clears if stat < self.m.clear_frac * thr else _NOTHING
+        return Verdict(test, "pass", implicates, clear, stat, thr, "", pass_scale_m)
 
     def _baro_doppler_verdict(self, t: int) -> Optional[Verdict]:
         """The baro's change against the GNSS Doppler's integral over the same
@@ -1079,7 +1079,8 @@ class HypothesisLogic:
         ins_tests = (self._slow_ins(self._ins_verdict(t)), self._slow_ins(self._ins_doppler_verdict(t)))
         # an INS test that is not passing puts the INS among what an aux channel's
         # innovations can mean (the channel runs on it between its samples)
-        self.ins_doubt = any(v is not None and v.level != "pass" for v in ins_tests)
+        v_ins, v_insdop = ins_tests
+        self.ins_doubt = (v_ins is not None and v_ins.level != "pass") or (v_insdop is not None and v_insdop.level != "pass")
         aux = (self._aux_verdict(GNSS, GNSS_S, t), self._aux_verdict(RNG, RANGEFINDER_S, t))
         drift = self._drift_verdict(t)
         baro_doppler = self._baro_doppler_verdict(t)
@@ -1201,7 +1202,7 @@ class HypothesisLogic:
         else:
             c = CHANNEL_OF[name]
             if self.last_seen_us[c] is None or t - self.last_seen_us[c] > self.stale_us[c]:
-                env = j.sources == frozenset((name,)) and j.situation == "isolated"
+                env = j.situation == "isolated" and j.sources == _ONLY[name]
                 if not env:
                     return tr.set("unavailable", t, "no recent data")
         if name in j.sources:
