@@ -327,6 +327,7 @@ class EpochBuilder:
         self._baro_restart = False
         self._cadence = {k: Cadence() for k in ("imu", "baro", "gnss", "rng")}
         self._imu_cadence = self._cadence["imu"]
+        self._baro_cadence = self._cadence["baro"]
         self._gap_key: Optional[int] = -1  # the baro interval _gap_us was computed for (-1: none yet)
         self._gap_us = 0
         self._scatter_var = math.nan  # of f_up between consecutive IMU samples, (m/s^2)^2
@@ -454,7 +455,9 @@ class EpochBuilder:
         elif pending:  # the first sample at or after the head baro completes its epoch
             k = bisect_left(ts, pending[0].t_us, i, j) + 1
         else:  # the first sample beyond the gap limit forces one
-            k = bisect_right(ts, epoch_t + self._max_gap_us(), i, j) + 1
+            # (_max_gap_us(), its kept value while the baro cadence stays)
+            gap_us = self._gap_us if self._baro_cadence.interval_us == self._gap_key else self._max_gap_us()
+            k = bisect_right(ts, epoch_t + gap_us, i, j) + 1
         ends = k <= j
         if not ends:
             k = j

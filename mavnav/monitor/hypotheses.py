@@ -736,7 +736,7 @@ class HypothesisLogic:
         return sudden
 
     def _ins_verdict(self, t: int) -> Optional[Verdict]:
-        if self._warm(BARO_INS_S, t) or t - self.last_baro_us > self.stale_baro_us:
+        if t < self.warm_until[BARO_INS_S] or t - self.last_baro_us > self.stale_baro_us:  # _warm, inline
             return None
         m = self.m
         implicates = _BARO_AND_INS
@@ -788,11 +788,12 @@ class HypothesisLogic:
         height held by its own sensor, and its estimate of the baro's bias): a
         slowly growing baro or aux error that the differenced baro row cannot see."""
         out = []
-        if BARO_INS_S in self.excluded or self.last_baro_m is None or self._warm(BARO_INS_S, t):
+        warm_until = self.warm_until  # _warm, inline
+        if BARO_INS_S in self.excluded or self.last_baro_m is None or t < warm_until[BARO_INS_S]:
             return out
         bank = self.bank
         for c, name in AUX:
-            if not avail[c] or self._warm(name, t) or not bank.baro_on[c]:
+            if not avail[c] or t < warm_until[name] or not bank.baro_on[c]:
                 self.level_since[c] = None
                 continue
             x = bank.x[c].tolist()  # Python floats: the same sums, without numpy scalars
