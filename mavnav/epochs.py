@@ -494,8 +494,10 @@ class EpochBuilder:
             ht[:self._hn] = self._ht[:self._hn]
             hf[:self._hn] = self._hf[:self._hn]
             self._ht, self._hf = ht, hf
+        n = len(rt)
         hn, unknown_us, unknown, dp, dv, var = imu_kernel(
-            np.array(rt, np.int64), np.array(rf, np.float64), self._ht, self._hf, self._hn, self._ks, self._ki,
+            np.fromiter(rt, np.int64, n), np.fromiter(rf, np.float64, n),  # np.array's values, sooner
+            self._ht, self._hf, self._hn, self._ks, self._ki,
             self._epoch_t is not None, integrate, self._epoch_t if integrate else 0, t_end, *self._kparams)
         rt.clear()
         rf.clear()

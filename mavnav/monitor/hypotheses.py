@@ -1081,7 +1081,8 @@ class HypothesisLogic:
         # an INS test that is not passing puts the INS among what an aux channel's
         # innovations can mean (the channel runs on it between its samples)
         v_ins, v_insdop = ins_tests
-        self.ins_doubt = (v_ins is not None and v_ins.level != "pass") or (v_insdop is not None and v_insdop.level != "pass")
+        self.ins_doubt = ((v_ins is not None and v_ins.level != "pass")
+                          or (v_insdop is not None and v_insdop.level != "pass"))
         aux = (self._aux_verdict(GNSS, GNSS_S, t), self._aux_verdict(RNG, RANGEFINDER_S, t))
         drift = self._drift_verdict(t)
         baro_doppler = self._baro_doppler_verdict(t)

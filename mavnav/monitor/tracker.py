@@ -52,5 +52,5 @@ class SourceTracker:
     def window_status(self, window_stat: float, window_high: float, rejected: int) -> SourceStatus:
         """``status(window_stat=..., window_low=NaN, window_high=..., rejected=...)``,
         built positionally (once per source per epoch)."""
-        return SourceStatus(self.state, self.since_us * 1e-6, self.reason, window_stat, NAN, window_high,  # type: ignore[arg-type]
-                            rejected)
+        return SourceStatus(self.state, self.since_us * 1e-6, self.reason,  # type: ignore[arg-type]
+                            window_stat, NAN, window_high, rejected)
