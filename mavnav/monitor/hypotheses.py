@@ -80,6 +80,7 @@ _WITH_BARO_INS = {name: frozenset((name, BARO_S, INS_S)) for _, name in AUX}
 _WITH_INS = {name: frozenset((name, INS_S)) for _, name in AUX}
 _BARO_AND_INS = frozenset((BARO_S, INS_S))
 _INS_ONLY = frozenset((INS_S,))
+_BARO_ONLY = frozenset((BARO_S,))
 _NOTHING: frozenset = frozenset()
 
 
@@ -804,35 +805,39 @@ class HypothesisLogic:
             thr = self.k_cmp * math.sqrt(var)
             implicates = _LEVEL_IMPLICATES[name]
             test = _LEVEL_TEST[name]
+            stat = abs(r)
+            suspect_thr = self.m.suspect_frac * thr
             # the text only where a verdict carries it (a pass has none)
             txt = (f"baro {r:+.2f} m from the {LABEL[name]} channel (threshold {thr:.2f} m)"
-                   if abs(r) > self.m.suspect_frac * thr or abs(r) > thr else "")
-            if abs(r) > thr:
+                   if stat > suspect_thr or stat > thr else "")
+            if stat > thr:
                 if self.level_since[c] is None:
                     self.level_since[c] = t
                 level = "fail" if t - self.level_since[c] >= self.persist_us else "suspect"
-                out.append(Verdict(test, level, implicates, stat=abs(r), threshold=thr, text=txt, scale_m=abs(r)))
+                out.append(Verdict(test, level, implicates, _NOTHING, stat, thr, txt, stat))
                 continue
             self.level_since[c] = None
-            if abs(r) > self.m.suspect_frac * thr:
-                out.append(Verdict(test, "suspect", implicates, stat=abs(r), threshold=thr, text=txt))
+            if stat > suspect_thr:
+                out.append(Verdict(test, "suspect", implicates, _NOTHING, stat, thr, txt))
             else:
                 # a pass clears the baro only, and only while the channel tracks its own
                 # sensor (none rejected, its innovations not drifting): a channel gating
                 # it out coasts on the baro, and one whose innovations drift has its
-                # baro-bias estimate dH between the two, so H + dH follows the baro
-                held = (self.rejections[name].rejected == 0
-                        and self._cusum_stat(name) < self.m.clear_frac * self._h(name))
+                # baro-bias estimate dH between the two, so H + dH follows the baro;
                 # and never where the channel models the GNSS's slow error: its b_g
-                # takes up a slow baro error, and H + dH follows the baro
-                tracks = held and not (c == GNSS and bank.model.gnss_gm_sigma_m > 0.0)
-                clear = frozenset((BARO_S,)) if abs(r) < self.m.clear_frac * thr and tracks else frozenset()
+                # takes up a slow baro error, and H + dH follows the baro (asked in
+                # that order, and only for a statistic below clear_frac of the threshold)
+                clear = _NOTHING
+                if (stat < self.m.clear_frac * thr and self.rejections[name].rejected == 0
+                        and self._cusum_stat(name) < self.m.clear_frac * self._h(name)
+                        and not (c == GNSS and bank.model.gnss_gm_sigma_m > 0.0)):
+                    clear = _BARO_ONLY
                 # scale: the threshold, not less the statistic: the channel's own height
                 # follows a slow baro error in part, so the margin overstates the power
                 # a baro fault of size X would read about X here: faults beyond the
                 # statistic plus a margin are ruled out
-                out.append(Verdict(test, "pass", implicates, clear, abs(r), thr,
-                                   scale_m=abs(r) + self.m.clear_margin_sigma * thr / self.k_cmp))
+                out.append(Verdict(test, "pass", implicates, clear, stat, thr, "",
+                                   stat + self.m.clear_margin_sigma * thr / self.k_cmp))
         return out
 
     def _raw_verdict(self) -> Optional[Verdict]:
