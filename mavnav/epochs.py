@@ -425,7 +425,8 @@ class EpochBuilder:
         if pending:
             if pending[0].t_us > t_us:
                 return []
-        elif t_us - epoch_t <= self._max_gap_us():
+        elif t_us - epoch_t <= (self._gap_us if self._baro_cadence.interval_us == self._gap_key  # _max_gap_us()
+                                else self._max_gap_us()):
             if len(raw) >= _RAW_MAX:
                 self._take_imu()
             return []
