@@ -1046,7 +1046,7 @@ class HypothesisLogic:
         h, sigma, used, vpl = self._fuse(j, avail)
         if self.f.validated_feedback:
             self._feedback(t, avail)
-        # each source's displayed statistic: the first verdict of its test (_display_stat, once for all three)
+        # each source's displayed statistic and threshold: those of the first verdict of its test
         shown: dict = {}
         for v in verdicts:
             if v.test not in shown:
@@ -1170,13 +1170,6 @@ class HypothesisLogic:
     @staticmethod
     def _held(j: Judgement) -> frozenset:
         return j.sources if not j.enters_output else frozenset()
-
-    def _display_stat(self, name: str, verdicts) -> tuple[float, float]:
-        test = _DISPLAY_TEST[name]
-        for v in verdicts:
-            if v.test == test:
-                return v.stat, v.threshold
-        return math.nan, math.nan
 
     def _paper_judge(self, verdicts, live) -> Judgement:
         """Isolation switched off: every failure blames its own sensor (the
