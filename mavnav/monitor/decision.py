@@ -16,7 +16,8 @@ class Decision:
     available: tuple  # per channel: usable for comparison
     used: tuple  # per channel: in the fused output
     pairs: tuple  # PairReport in PAIR_NAMES order
-    sources: dict  # sensors.SENSOR_SOURCES (gnss, rangefinder, baro_ins) -> SourceStatus
+    sources: dict  # sensors.SENSOR_SOURCES (gnss, rangefinder, baro_ins) -> SourceStatus (fresh each epoch:
+    # the core adds the input's status to it and hands it to the report)
     height_fused_m: float
     sigma_fused_m: float
     events: list = field(default_factory=list)
