@@ -127,6 +127,16 @@ class Monitor:
             self.rates[BARO_S].push(s.t_us)
             eps = self.builder._on_baro(s)  # EpochBuilder.push's baro branch
             return self._epochs(eps) if eps else eps
+        if kind is RangeHeight:  # the aux samples: EpochBuilder.push's branches, no epoch from them
+            self.raw[RNG_S] = s.height_agl_m
+            self.rates[RNG_S].push(s.t_us)
+            self.builder._on_aux(s, "rng")
+            return []
+        if kind is GnssHeight:
+            self.raw[GNSS_S] = s.height_ref_m
+            self.rates[GNSS_S].push(s.t_us)
+            self.builder._on_aux(s, "gnss")
+            return []
         if isinstance(s, SpecificForceUp):
             self.rates[IMU_S].push(s.t_us)
         elif isinstance(s, BaroHeight):
