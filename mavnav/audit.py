@@ -70,11 +70,13 @@ class AuditSink(Sink):
 
     def epoch(self, r: EpochReport) -> None:
         self.epochs += 1
+        counts = self.state_counts
         for name, st in r.sources.items():
-            self.state_counts[name][st.state] += 1
+            counts[name][st.state] += 1
+        used = self.used_counts
         for ch in r.channels:
             if ch.used:
-                self.used_counts[ch.name] += 1
+                used[ch.name] += 1
         self.overall[r.overall] += 1
         d = r.height_fused_m - r.autopilot_height_ref_m
         if d == d:

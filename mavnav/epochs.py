@@ -327,6 +327,7 @@ class EpochBuilder:
         self._baro_restart = False
         self._cadence = {k: Cadence() for k in ("imu", "baro", "gnss", "rng")}
         self._imu_cadence = self._cadence["imu"]
+        self._baro_cadence = self._cadence["baro"]
         self._gap_key: Optional[int] = -1  # the baro interval _gap_us was computed for (-1: none yet)
         self._gap_us = 0
         self._scatter_var = math.nan  # of f_up between consecutive IMU samples, (m/s^2)^2
@@ -424,7 +425,8 @@ class EpochBuilder:
         if pending:
             if pending[0].t_us > t_us:
                 return []
-        elif t_us - epoch_t <= self._max_gap_us():
+        elif t_us - epoch_t <= (self._gap_us if self._baro_cadence.interval_us == self._gap_key  # _max_gap_us()
+                                else self._max_gap_us()):
             if len(raw) >= _RAW_MAX:
                 self._take_imu()
             return []
@@ -454,7 +456,9 @@ class EpochBuilder:
         elif pending:  # the first sample at or after the head baro completes its epoch
             k = bisect_left(ts, pending[0].t_us, i, j) + 1
         else:  # the first sample beyond the gap limit forces one
-            k = bisect_right(ts, epoch_t + self._max_gap_us(), i, j) + 1
+            # (_max_gap_us(), its kept value while the baro cadence stays)
+            gap_us = self._gap_us if self._baro_cadence.interval_us == self._gap_key else self._max_gap_us()
+            k = bisect_right(ts, epoch_t + gap_us, i, j) + 1
         ends = k <= j
         if not ends:
             k = j
@@ -491,8 +495,10 @@ class EpochBuilder:
             ht[:self._hn] = self._ht[:self._hn]
             hf[:self._hn] = self._hf[:self._hn]
             self._ht, self._hf = ht, hf
+        n = len(rt)
         hn, unknown_us, unknown, dp, dv, var = imu_kernel(
-            np.array(rt, np.int64), np.array(rf, np.float64), self._ht, self._hf, self._hn, self._ks, self._ki,
+            np.fromiter(rt, np.int64, n), np.fromiter(rf, np.float64, n),  # np.array's values, sooner
+            self._ht, self._hf, self._hn, self._ks, self._ki,
             self._epoch_t is not None, integrate, self._epoch_t if integrate else 0, t_end, *self._kparams)
         rt.clear()
         rf.clear()
@@ -742,6 +748,8 @@ class EpochBuilder:
     def _aux_for(self, which: str, t_us: int) -> Optional[AuxMeasurement]:
         """Every pending sample of ``which`` not after ``t_us``, averaged into one measurement."""
         q = self._aux[which]
+        if not q or q[0].t_us > t_us:  # nothing pending for this epoch (most epochs)
+            return None
         limit = self._latency_us(which)
         n = n_v = 0
         sum_h = sum_age = sum_var = sum_v = 0.0

@@ -10,11 +10,11 @@ import pytest
 
 from mavnav import report, samples
 from mavnav.fastinit import fast_frozen_init
-from mavnav.monitor import verdict
+from mavnav.monitor import table, verdict
 
 PATCHED = [samples.SpecificForceUp, samples.BaroHeight, samples.GnssHeight, samples.RangeHeight,
            samples.AutopilotHeight, samples.Rejected, report.ChannelReport, report.PairReport,
-           report.SourceStatus, report.EpochReport, report.AlarmEvent, verdict.Verdict]
+           report.SourceStatus, report.EpochReport, report.AlarmEvent, verdict.Verdict, table.Judgement]
 
 
 def _values(cls, k: int) -> list:

@@ -5,6 +5,7 @@ stands beside (the Gauss-Markov state, on from the start in adaptive mode)."""
 from __future__ import annotations
 
 import math
+import statistics
 
 import numpy as np
 import pytest
@@ -45,6 +46,37 @@ def test_a_ramp_reads_its_rate_and_white_noise_its_own_error(seed):
 
 
 @pytest.mark.unit
+def _reference_fit(h) -> tuple[float, float]:
+    """The slope and its white-noise error over the window ``h`` of ``(t_us, d_m)``,
+    written plainly (generators, statistics.median): what DriftCheck.push computes."""
+    t_us = h[-1][0]
+    ts = [(s[0] - t_us) * 1e-6 for s in h]
+    ds = [s[1] for s in h]
+    n = len(ts)
+    t_mean = sum(ts) / n
+    d_mean = sum(ds) / n
+    sxx = sum((x - t_mean) ** 2 for x in ts)
+    sxy = sum((x - t_mean) * (y - d_mean) for x, y in zip(ts, ds))
+    second = [abs(ds[i + 1] - 2.0 * ds[i] + ds[i - 1]) for i in range(1, n - 1)]
+    white_m = statistics.median(second) * (1.0 / 0.6745) / math.sqrt(6.0)
+    return sxy / sxx, white_m / math.sqrt(sxx)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_fit_is_the_plain_formula_float_for_float(seed):
+    """Odd and even window lengths (the median of the second differences), jittered times."""
+    rng = np.random.default_rng(seed)
+    d = DriftCheck(window_s=10.0, max_gap_s=2.0)
+    t = 1_000_000
+    for _ in range(400):
+        t += int(rng.integers(80_000, 120_000))
+        slope = d.push(t, float(rng.normal(0.0, 0.7)) + 0.05 * t * 1e-6)
+        if slope is None:
+            continue
+        want = _reference_fit(list(d.hist))
+        assert (slope, d.last_white_sd_mps) == want
+
+
 def test_a_gap_or_a_bad_sample_restarts_the_window():
     check = DriftCheck(window_s=10.0, max_gap_s=1.5)
     t = np.arange(0.0, 12.0, 0.2)

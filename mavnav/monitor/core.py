@@ -118,6 +118,25 @@ class Monitor:
                 q.popleft()
             eps = self.builder._on_imu(t_us, s.f_up_mps2)  # EpochBuilder.push's IMU branch
             return self._epochs(eps) if eps else eps
+        kind = type(s)
+        if kind is AutopilotHeight:  # the next most (onboard logs: about two per epoch): no epoch from it
+            self.raw[AUTOPILOT] = s.height_ref_m
+            return []
+        if kind is BaroHeight:  # one per epoch
+            self.raw[BARO_S] = s.height_ref_m
+            self.rates[BARO_S].push(s.t_us)
+            eps = self.builder._on_baro(s)  # EpochBuilder.push's baro branch
+            return self._epochs(eps) if eps else eps
+        if kind is RangeHeight:  # the aux samples: EpochBuilder.push's branches, no epoch from them
+            self.raw[RNG_S] = s.height_agl_m
+            self.rates[RNG_S].push(s.t_us)
+            self.builder._on_aux(s, "rng")
+            return []
+        if kind is GnssHeight:
+            self.raw[GNSS_S] = s.height_ref_m
+            self.rates[GNSS_S].push(s.t_us)
+            self.builder._on_aux(s, "gnss")
+            return []
         if isinstance(s, SpecificForceUp):
             self.rates[IMU_S].push(s.t_us)
         elif isinstance(s, BaroHeight):
@@ -251,25 +270,27 @@ class Monitor:
         if ev is not None:
             events.append(ev)
         bank = self.bank
-        chans = []
         xs = bank.x.tolist()
         phh = bank.P[:, 0, 0].tolist()
         ivar = step.innovation_var.tolist()
         inn = step.innovation.tolist()
         nis = step.nis.tolist()
         dof = step.dof.tolist()
+        avail, used = d.available, d.used
+        chans = []
         for c, name in enumerate(CHANNEL_NAMES):
             x = xs[c]
             sb, sa = ivar[c]
             ib, ia = inn[c]
+            p = phh[c]
             chans.append(ChannelReport(
-                name, x[0], math.sqrt(max(phh[c], 0.0)), x[1], x[2], x[3],
-                bool(d.available[c]), bool(d.used[c]), nis[c], dof[c],
+                name, x[0], math.sqrt(0.0 if 0.0 > p else p), x[1], x[2], x[3],  # max(p, 0.0), NaN kept
+                bool(avail[c]), bool(used[c]), nis[c], dof[c],
                 ib / math.sqrt(sb) if sb == sb else math.nan,
                 ia / math.sqrt(sa) if sa == sa else math.nan,
             ))
-        sources = dict(d.sources)
-        sources[INPUT] = self.input.status()
+        sources = d.sources  # the logic's own dict, built for this epoch: the input's status joins it
+        input_status = sources[INPUT] = self.input.status()
         if d.vpl_m == d.vpl_m:
             vpl = d.vpl_m
         else:
@@ -277,32 +298,20 @@ class Monitor:
         # A source that is merely unavailable (no data) does not degrade the
         # overall state by itself: the protection level says whether what is
         # left still supports the alert limit.
-        states = {st.state for st in sources.values()}
+        states = [st.state for st in sources.values()]
+        alert_limit_m = self.mcfg.alert_limit_m
         if "alarm" in states:
             overall = "alarm"
-        elif (not (vpl <= self.mcfg.alert_limit_m) or d.height_fused_m != d.height_fused_m
-              or sources[INPUT].state == "unavailable"):
+        elif (not (vpl <= alert_limit_m) or d.height_fused_m != d.height_fused_m
+              or input_status.state == "unavailable"):
             overall = "unavailable"
         elif "caution" in states:
             overall = "caution"
         else:
             overall = "nominal"
-        report = EpochReport(
-            t_us=t_us,
-            boot=self.boot,
-            height_fused_m=d.height_fused_m,
-            sigma_fused_m=d.sigma_fused_m,
-            channels=tuple(chans),
-            pairs=d.pairs,
-            sources=sources,
-            overall=overall,  # type: ignore[arg-type]
-            vpl_m=vpl,
-            alert_limit_m=self.mcfg.alert_limit_m,
-            baro_height_ref_m=self.raw[BARO_S],
-            gnss_height_ref_m=self.raw[GNSS_S],
-            range_height_agl_m=self.raw[RNG_S],
-            autopilot_height_ref_m=self.raw[AUTOPILOT],
-            mode=self.mcfg.mode,
-        )
+        raw = self.raw
+        report = EpochReport(t_us, self.boot, d.height_fused_m, d.sigma_fused_m, tuple(chans), d.pairs, sources,
+                             overall, vpl, alert_limit_m,  # type: ignore[arg-type]
+                             raw[BARO_S], raw[GNSS_S], raw[RNG_S], raw[AUTOPILOT], self.mcfg.mode)
         return report, events
 

@@ -11,12 +11,13 @@ from ..bank import BARO, GNSS, PAIRS, RNG, ChannelBank
 from ..report import PAIR_NAMES, PairReport
 
 
-@dataclass
+@dataclass(slots=True)
 class Decision:
     available: tuple  # per channel: usable for comparison
     used: tuple  # per channel: in the fused output
     pairs: tuple  # PairReport in PAIR_NAMES order
-    sources: dict  # sensors.SENSOR_SOURCES (gnss, rangefinder, baro_ins) -> SourceStatus
+    sources: dict  # sensors.SENSOR_SOURCES (gnss, rangefinder, baro_ins) -> SourceStatus (fresh each epoch:
+    # the core adds the input's status to it and hands it to the report)
     height_fused_m: float
     sigma_fused_m: float
     events: list = field(default_factory=list)
@@ -52,4 +53,23 @@ def diff_sigmas(bank: ChannelBank, floor_var=(0.0, 0.0, 0.0)) -> np.ndarray:
     return out
 
 
-__all__ = ["Decision", "pair_reports", "diff_sigmas", "GNSS", "RNG", "BARO", "PAIRS"]
+def pair_reports_scaled(bank: ChannelBank, available, floor_var, k: float) -> tuple[PairReport, ...]:
+    """``pair_reports(bank, available, k * diff_sigmas(bank, floor_var))`` on
+    Python floats, per epoch: the same products, sums and square roots in the
+    same order, without the arrays between them (``tests/test_monitor_decision.py``)."""
+    ph = bank.P[:, 0, 0].tolist()
+    pc = bank.Pc[:, 0, 0].tolist()
+    h = bank.x[:, 0].tolist()
+    out = []
+    for p, (a, b) in enumerate(PAIRS):
+        pa, pb = ph[a], ph[b]
+        fa, fb = floor_var[a], floor_var[b]
+        v = (fa if fa > pa else pa) + (fb if fb > pb else pb) - 2.0 * pc[p]  # max(), as max() picks (NaN too)
+        thr = k * math.sqrt(1e-12 if 1e-12 > v else v)
+        diff = h[a] - h[b]
+        valid = bool(available[a] and available[b])
+        out.append(PairReport(PAIR_NAMES[p], diff, thr, valid and abs(diff) > thr, valid))
+    return tuple(out)
+
+
+__all__ = ["Decision", "pair_reports", "pair_reports_scaled", "diff_sigmas", "GNSS", "RNG", "BARO", "PAIRS"]

@@ -28,7 +28,6 @@ Pure: samples in, the slope out; the caller owns thresholds and verdicts.
 from __future__ import annotations
 
 import math
-import statistics
 from collections import deque
 from typing import Optional
 
@@ -80,10 +79,14 @@ class DriftCheck:
         n = len(ts)
         t_mean = sum(ts) / n
         d_mean = sum(ds) / n
-        sxx = sum((x - t_mean) ** 2 for x in ts)
-        sxy = sum((x - t_mean) * (y - d_mean) for x, y in zip(ts, ds))
-        second = [abs(ds[i + 1] - 2.0 * ds[i] + ds[i - 1]) for i in range(1, n - 1)]
-        white_m = statistics.median(second) * MAD_TO_SIGMA / SECOND_DIFF_GAIN
+        # the sums over lists (not generators): the same terms added in the same order
+        sxx = sum([(x - t_mean) ** 2 for x in ts])
+        sxy = sum([(x - t_mean) * (y - d_mean) for x, y in zip(ts, ds)])
+        # |ds[i + 1] - 2 ds[i] + ds[i - 1]| for i in 1 .. n - 2, and their median (statistics.median's)
+        second = sorted([abs(c - 2.0 * b + a) for a, b, c in zip(ds, ds[1:], ds[2:])])
+        m = len(second)
+        median = second[m // 2] if m % 2 == 1 else (second[m // 2 - 1] + second[m // 2]) / 2
+        white_m = median * MAD_TO_SIGMA / SECOND_DIFF_GAIN
         self.last_slope_mps = sxy / sxx
         self.last_white_sd_mps = white_m / math.sqrt(sxx)
         self.last_span_s = -ts[0]

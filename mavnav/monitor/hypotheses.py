@@ -51,7 +51,7 @@ from ..config import Config
 from ..sensors import BARO as BARO_S, BARO_INS as BARO_INS_S, GNSS as GNSS_S, INS as INS_S
 from ..sensors import RANGEFINDER as RANGEFINDER_S
 from .cusum import Cusum, threshold_for
-from .decision import Decision, diff_sigmas, pair_reports
+from .decision import Decision, pair_reports_scaled
 from .doppler import MIN_SPAN_FRAC, DopplerCheck, Exceedance, InsDopplerCheck
 from .drift import DriftCheck
 from .fusion import fuse_heights
@@ -78,6 +78,10 @@ _ONLY = {name: frozenset((name,)) for _, name in AUX}
 _WITH_BARO = {name: frozenset((name, BARO_S)) for _, name in AUX}
 _WITH_BARO_INS = {name: frozenset((name, BARO_S, INS_S)) for _, name in AUX}
 _WITH_INS = {name: frozenset((name, INS_S)) for _, name in AUX}
+_BARO_AND_INS = frozenset((BARO_S, INS_S))
+_INS_ONLY = frozenset((INS_S,))
+_BARO_ONLY = frozenset((BARO_S,))
+_NOTHING: frozenset = frozenset()
 
 
 def _last(q: deque, n: int) -> list:
@@ -312,18 +316,19 @@ class HypothesisLogic:
             self.before_jump.clear()
             return math.inf
         nu2 = r * r / S
-        self.last_z[BARO_INS_S] = r / math.sqrt(S)
+        sd = math.sqrt(S)
+        z = self.last_z[BARO_INS_S] = r / sd
         # the jump gate at the baro row's measured scatter (never below the model's)
         sc = self.scale[BARO_S]
         reject = self.f.innovation_gating and nu2 > self.baro_gate * sc.sd ** 2
         if not reject and self.jump is None:
-            sc.push(t, self.last_z[BARO_INS_S])
-        if not self._warm(BARO_INS_S, t):
+            sc.push(t, z)
+        if not t < self.warm_until[BARO_INS_S]:  # not self._warm(BARO_INS_S, t)
             self.rejections[BARO_INS_S].push(t, reject)
-            self.baro_judged = (r, math.sqrt(S), reject)
+            self.baro_judged = (r, sd, reject)
         if reject:
             changes["baro_restart"] = True  # no baro row anywhere; differencing restarts
-        return abs(self.last_z[BARO_INS_S])
+        return abs(z)
 
     def _latest_baro_z(self, t: int) -> float:
         """No baro sample in this epoch (each sample has its own): the latest
@@ -519,8 +524,8 @@ class HypothesisLogic:
                            scale_m=stat if fail_scale_m is None else fail_scale_m, sizes=sizes)
         if stat > self.m.suspect_frac * thr and ex.near >= 2:
             return Verdict(test, "suspect", implicates, stat=stat, threshold=thr, text=why())
-        clear = clears if stat < self.m.clear_frac * thr else frozenset()
-        return Verdict(test, "pass", implicates, clear, stat, thr, scale_m=pass_scale_m)
+        clear = clears if stat < self.m.clear_frac * thr else _NOTHING
+        return Verdict(test, "pass", implicates, clear, stat, thr, "", pass_scale_m)
 
     def _baro_doppler_verdict(self, t: int) -> Optional[Verdict]:
         """The baro's change against the GNSS Doppler's integral over the same
@@ -614,15 +619,26 @@ class HypothesisLogic:
         j = self.jump
         if j is None:
             before = self.before_jump
-            while before and t - before[0][0] > 1e6 * max(1.0, 2 * m.baro_jump_confirm_s):
+            keep_us = 1e6 * max(1.0, 2 * m.baro_jump_confirm_s)
+            while before and t - before[0][0] > keep_us:
                 before.popleft()
             if reject and before:
                 ref = tuple(_last(before, m.baro_jump_reference_samples))
                 size = b - self._carried(ref, t)
                 self.jump = [t, size, sd, size, 0, ref]
             elif not reject:
-                old = [e for e in _last(before, OFFSET_SEARCH_SAMPLES)
-                       if t - e[0] >= m.baro_jump_confirm_s * 1e6][-m.baro_jump_reference_samples:]
+                # of the last OFFSET_SEARCH_SAMPLES, the last baro_jump_reference_samples
+                # that are baro_jump_confirm_s old: the first that many found walking back
+                confirm_us = m.baro_jump_confirm_s * 1e6
+                n_ref = m.baro_jump_reference_samples
+                old = []
+                for k in range(1, min(OFFSET_SEARCH_SAMPLES, len(before)) + 1):
+                    e = before[-k]
+                    if t - e[0] >= confirm_us:
+                        old.append(e)
+                        if len(old) == n_ref:
+                            break
+                old.reverse()
                 if old:
                     self.offset_scale.push(t, b - self._carried(old, t))
                 before.append((t, b, ins.pos_m, ins.vel_mps, float(self.bank.x[self._anchor(t), 1])))
@@ -725,10 +741,10 @@ class HypothesisLogic:
         return sudden
 
     def _ins_verdict(self, t: int) -> Optional[Verdict]:
-        if self._warm(BARO_INS_S, t) or t - self.last_baro_us > self.stale_baro_us:
+        if t < self.warm_until[BARO_INS_S] or t - self.last_baro_us > self.stale_baro_us:  # _warm, inline
             return None
         m = self.m
-        implicates = frozenset((BARO_S, INS_S))
+        implicates = _BARO_AND_INS
         rej = self.rejections[BARO_INS_S].rejected
         v = self._jump_verdict(t, implicates)
         if v is not None:
@@ -748,7 +764,7 @@ class HypothesisLogic:
         # a second difference is blind to a ramp: a pass rules out the INS, never the
         # baro; and with the baro excluded it rules out nothing (its reference is out,
         # and the channel's accelerometer estimate has followed whichever was wrong)
-        clears = frozenset((INS_S,)) if rej == 0 and BARO_INS_S not in self.excluded else frozenset()
+        clears = _INS_ONLY if rej == 0 and BARO_INS_S not in self.excluded else _NOTHING
         return self._graded("baro/INS", stat, thr, self.ins_ex, t, implicates, why, clears=clears,
                             pass_scale_m=thr)  # V_s follows a slow error in part
 
@@ -772,17 +788,17 @@ class HypothesisLogic:
                            threshold=math.sqrt(self.baro_gate))
         return None
 
-    def _level_verdicts(self, t: int) -> list[Verdict]:
+    def _level_verdicts(self, t: int, avail: tuple) -> list[Verdict]:
         """The baro's level against each aux channel's ``H + dH`` (the channel's
         height held by its own sensor, and its estimate of the baro's bias): a
         slowly growing baro or aux error that the differenced baro row cannot see."""
         out = []
-        if BARO_INS_S in self.excluded or self.last_baro_m is None or self._warm(BARO_INS_S, t):
+        warm_until = self.warm_until  # _warm, inline
+        if BARO_INS_S in self.excluded or self.last_baro_m is None or t < warm_until[BARO_INS_S]:
             return out
         bank = self.bank
-        avail = self._available(t)
         for c, name in AUX:
-            if not avail[c] or self._warm(name, t) or not bank.baro_on[c]:
+            if not avail[c] or t < warm_until[name] or not bank.baro_on[c]:
                 self.level_since[c] = None
                 continue
             x = bank.x[c].tolist()  # Python floats: the same sums, without numpy scalars
@@ -793,35 +809,39 @@ class HypothesisLogic:
             thr = self.k_cmp * math.sqrt(var)
             implicates = _LEVEL_IMPLICATES[name]
             test = _LEVEL_TEST[name]
+            stat = abs(r)
+            suspect_thr = self.m.suspect_frac * thr
             # the text only where a verdict carries it (a pass has none)
             txt = (f"baro {r:+.2f} m from the {LABEL[name]} channel (threshold {thr:.2f} m)"
-                   if abs(r) > self.m.suspect_frac * thr or abs(r) > thr else "")
-            if abs(r) > thr:
+                   if stat > suspect_thr or stat > thr else "")
+            if stat > thr:
                 if self.level_since[c] is None:
                     self.level_since[c] = t
                 level = "fail" if t - self.level_since[c] >= self.persist_us else "suspect"
-                out.append(Verdict(test, level, implicates, stat=abs(r), threshold=thr, text=txt, scale_m=abs(r)))
+                out.append(Verdict(test, level, implicates, _NOTHING, stat, thr, txt, stat))
                 continue
             self.level_since[c] = None
-            if abs(r) > self.m.suspect_frac * thr:
-                out.append(Verdict(test, "suspect", implicates, stat=abs(r), threshold=thr, text=txt))
+            if stat > suspect_thr:
+                out.append(Verdict(test, "suspect", implicates, _NOTHING, stat, thr, txt))
             else:
                 # a pass clears the baro only, and only while the channel tracks its own
                 # sensor (none rejected, its innovations not drifting): a channel gating
                 # it out coasts on the baro, and one whose innovations drift has its
-                # baro-bias estimate dH between the two, so H + dH follows the baro
-                held = (self.rejections[name].rejected == 0
-                        and self._cusum_stat(name) < self.m.clear_frac * self._h(name))
+                # baro-bias estimate dH between the two, so H + dH follows the baro;
                 # and never where the channel models the GNSS's slow error: its b_g
-                # takes up a slow baro error, and H + dH follows the baro
-                tracks = held and not (c == GNSS and bank.model.gnss_gm_sigma_m > 0.0)
-                clear = frozenset((BARO_S,)) if abs(r) < self.m.clear_frac * thr and tracks else frozenset()
+                # takes up a slow baro error, and H + dH follows the baro (asked in
+                # that order, and only for a statistic below clear_frac of the threshold)
+                clear = _NOTHING
+                if (stat < self.m.clear_frac * thr and self.rejections[name].rejected == 0
+                        and self._cusum_stat(name) < self.m.clear_frac * self._h(name)
+                        and not (c == GNSS and bank.model.gnss_gm_sigma_m > 0.0)):
+                    clear = _BARO_ONLY
                 # scale: the threshold, not less the statistic: the channel's own height
                 # follows a slow baro error in part, so the margin overstates the power
                 # a baro fault of size X would read about X here: faults beyond the
                 # statistic plus a margin are ruled out
-                out.append(Verdict(test, "pass", implicates, clear, abs(r), thr,
-                                   scale_m=abs(r) + self.m.clear_margin_sigma * thr / self.k_cmp))
+                out.append(Verdict(test, "pass", implicates, clear, stat, thr, "",
+                                   stat + self.m.clear_margin_sigma * thr / self.k_cmp))
         return out
 
     def _raw_verdict(self) -> Optional[Verdict]:
@@ -912,11 +932,18 @@ class HypothesisLogic:
         if ts - self.kink_learned_s < m.kink_learn_interval_s or self.judgement.situation != "clear" or self.jump:
             return
         self.kink_learned_s = ts
+        first_s = -m.kink_min_fill_frac * m.kink_window_s
+        onset = None
         for key, ser in self.kink.items():
-            s, y = ser.arrays(ts)
-            if s.size < m.kink_min_samples or s[0] > -m.kink_min_fill_frac * m.kink_window_s:
+            # too few samples, or the window not filled: the test on the series itself
+            # (its first time less ts is the arrays' first element), before any array
+            times = ser.t
+            if len(times) < m.kink_min_samples or times[0] - ts > first_s:
                 continue
-            num, den = kink_fit(s, y, np.array([-m.kink_window_s / 3.0]), quadratic=key.endswith("-ins"))
+            s, y = ser.arrays(ts)
+            if onset is None:
+                onset = np.array([-m.kink_window_s / 3.0])
+            num, den = kink_fit(s, y, onset, quadratic=key.endswith("-ins"))
             if den[0] > 0:
                 self.kink_sd[key].push(ts, float(num[0]) / math.sqrt(float(den[0])))
 
@@ -989,24 +1016,23 @@ class HypothesisLogic:
     # ------------------------------------------------------------------ after the step
 
     def _available(self, t: int) -> tuple[bool, bool, bool]:
-        bank = self.bank
+        ph = self.bank.P[:, 0, 0].tolist()  # Python floats: the same comparisons without numpy scalars
         max_var = self.m.max_channel_sigma_m ** 2
-        out = []
-        for c, name in AUX:
-            last = self.last_accept_us[c]
-            out.append(name not in self.excluded and last is not None and t - last <= self.stale_us[c]
-                       and bank.P[c, 0, 0] <= max_var)
-        out.append(t - self.last_baro_us <= self.stale_baro_us and bank.P[BARO, 0, 0] <= max_var)
-        return tuple(out)  # type: ignore[return-value]
+        excluded = self.excluded
+        last_g, last_r = self.last_accept_us[GNSS], self.last_accept_us[RNG]
+        return (GNSS_S not in excluded and last_g is not None and t - last_g <= self.stale_us[GNSS]
+                and ph[GNSS] <= max_var,
+                RANGEFINDER_S not in excluded and last_r is not None and t - last_r <= self.stale_us[RNG]
+                and ph[RNG] <= max_var,
+                t - self.last_baro_us <= self.stale_baro_us and ph[BARO] <= max_var)
 
     def post(self, ep: EpochInputs, ep_used: EpochInputs, step) -> Decision:
         bank = self.bank
         t = ep.t_us
         self._advance(ep, t)
         avail = self._available(t)
-        thr = self.k_cmp * diff_sigmas(bank, self.sensor_var_floor)
-        pairs = pair_reports(bank, avail, thr)
-        verdicts, aux = self._verdicts(t)
+        pairs = pair_reports_scaled(bank, avail, self.sensor_var_floor, self.k_cmp)
+        verdicts, aux = self._verdicts(t, avail)
         live = live_hypotheses(self.excluded)
         j = judge(verdicts, live) if self.f.isolation_2of3 else self._paper_judge(verdicts, live)
         j = self.judgement = self._restart_held(t, self._slow_blame(j), aux)
@@ -1016,17 +1042,27 @@ class HypothesisLogic:
                 self.isolated_src, self.isolated_since = j.sources, t
         else:
             self.isolated_src, self.isolated_since = frozenset(), None
-        events = [ev for ev in (self._source_state(name, t, j) for name in SENSOR_SOURCES) if ev is not None]
+        events = []
+        for name in SENSOR_SOURCES:
+            ev = self._source_state(name, t, j)
+            if ev is not None:
+                events.append(ev)
         h, sigma, used, vpl = self._fuse(j, avail)
         if self.f.validated_feedback:
             self._feedback(t, avail)
+        # each source's displayed statistic and threshold: those of the first verdict of its test
+        shown: dict = {}
+        for v in verdicts:
+            if v.test not in shown:
+                shown[v.test] = v
         statuses = {}
+        rejections = self.rejections
         for name, trk in self.trackers.items():
-            stat, hi = self._display_stat(name, verdicts)
-            statuses[name] = trk.status(window_stat=stat, window_low=math.nan, window_high=hi,
-                                        rejected=self.rejections[name].rejected)
-        return Decision(available=avail, used=tuple(used), pairs=pairs, sources=statuses,
-                        height_fused_m=h, sigma_fused_m=sigma, events=events, vpl_m=vpl)
+            v = shown.get(_DISPLAY_TEST[name])
+            statuses[name] = trk.window_status(v.stat if v is not None else math.nan,
+                                               v.threshold if v is not None else math.nan,
+                                               rejections[name].rejected)
+        return Decision(avail, tuple(used), pairs, statuses, h, sigma, events, vpl)
 
     def _advance(self, ep: EpochInputs, t: int) -> None:
         """The tests' own state after the filter step: windows, raw checks, the
@@ -1043,9 +1079,9 @@ class HypothesisLogic:
             self._track_jump(t, ep.baro_m, *self.baro_judged)
             self.baro_judged = None
 
-    def _verdicts(self, t: int) -> tuple[list, tuple]:
+    def _verdicts(self, t: int, avail: tuple) -> tuple[list, tuple]:
         """Every test's verdict this epoch (and the aux innovation verdicts, which
-        the hold rule needs)."""
+        the hold rule needs); ``avail``: :meth:`_available` at ``t``."""
         envelope = self._envelope_verdict(t)
         self.envelope_failing = envelope is not None  # also holds back the rangefinder's readmission
         if RANGEFINDER_S in self.excluded:
@@ -1053,13 +1089,15 @@ class HypothesisLogic:
         ins_tests = (self._slow_ins(self._ins_verdict(t)), self._slow_ins(self._ins_doppler_verdict(t)))
         # an INS test that is not passing puts the INS among what an aux channel's
         # innovations can mean (the channel runs on it between its samples)
-        self.ins_doubt = any(v is not None and v.level != "pass" for v in ins_tests)
+        v_ins, v_insdop = ins_tests
+        self.ins_doubt = ((v_ins is not None and v_ins.level != "pass")
+                          or (v_insdop is not None and v_insdop.level != "pass"))
         aux = (self._aux_verdict(GNSS, GNSS_S, t), self._aux_verdict(RNG, RANGEFINDER_S, t))
         drift = self._drift_verdict(t)
         baro_doppler = self._baro_doppler_verdict(t)
         verdicts = [v for v in (*aux, *ins_tests, self._raw_verdict(), envelope, self._doppler_verdict(t),
                                 baro_doppler, drift)
-                    if v is not None] + self._level_verdicts(t)
+                    if v is not None] + self._level_verdicts(t, avail)
         if self.f.kink_isolation and self.slow_imu_hz is None:  # the INS witnesses the kinks
             verdicts += self._kink_verdicts(t, aux, (drift, baro_doppler))
         return verdicts, aux
@@ -1137,13 +1175,6 @@ class HypothesisLogic:
     def _held(j: Judgement) -> frozenset:
         return j.sources if not j.enters_output else frozenset()
 
-    def _display_stat(self, name: str, verdicts) -> tuple[float, float]:
-        test = _DISPLAY_TEST[name]
-        for v in verdicts:
-            if v.test == test:
-                return v.stat, v.threshold
-        return math.nan, math.nan
-
     def _paper_judge(self, verdicts, live) -> Judgement:
         """Isolation switched off: every failure blames its own sensor (the
         paper's rule, channel against baro+INS)."""
@@ -1175,7 +1206,7 @@ class HypothesisLogic:
         else:
             c = CHANNEL_OF[name]
             if self.last_seen_us[c] is None or t - self.last_seen_us[c] > self.stale_us[c]:
-                env = j.sources == frozenset((name,)) and j.situation == "isolated"
+                env = j.situation == "isolated" and j.sources == _ONLY[name]
                 if not env:
                     return tr.set("unavailable", t, "no recent data")
         if name in j.sources:

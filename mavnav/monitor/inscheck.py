@@ -25,10 +25,6 @@ from collections import deque
 from typing import Optional
 
 
-def _time(e) -> int:
-    return e[0]
-
-
 class InsBaroCheck:
     def __init__(self, window_s: float):
         self.window_us = int(window_s * 1e6)
@@ -77,8 +73,9 @@ class InsBaroCheck:
         if (t[0] - u[0]) * 1e-6 < self.window_us * 1e-6:
             return None
         mid = 0.5 * (u[0] + t[0])
-        # the sample nearest the middle (the earlier on a tie); q is in time order
-        i = bisect.bisect_left(q, mid, key=_time)
+        # the sample nearest the middle (the earlier on a tie); q is in time order:
+        # the first entry at or after mid (a 1-tuple sorts before every entry of its time)
+        i = bisect.bisect_left(q, (mid,))
         s = q[i - 1] if i == len(q) or (i > 0 and mid - q[i - 1][0] <= q[i][0] - mid) else q[i]
         D0, D1 = (s[0] - u[0]) * 1e-6, (t[0] - s[0]) * 1e-6
         if D0 <= 0 or D1 <= 0:

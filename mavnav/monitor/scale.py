@@ -24,6 +24,9 @@ from __future__ import annotations
 
 import math
 
+_INF = math.inf
+_exp = math.exp
+
 
 class ResidualScale:
     __slots__ = ("tau_s", "lo", "hi", "max_phi", "m2", "c1", "prev", "last_us")
@@ -39,14 +42,22 @@ class ResidualScale:
         self.last_us = None
 
     def push(self, t_us: int, z: float) -> None:
-        if z != z or abs(z) == math.inf:
+        if z != z or z == _INF or z == -_INF:  # abs(z) == inf
             return
-        dt = 0.1 if self.last_us is None else max((t_us - self.last_us) * 1e-6, 0.0)
+        last = self.last_us
+        if last is None:
+            dt = 0.1
+        else:
+            dt = (t_us - last) * 1e-6
+            if 0.0 > dt:  # max(dt, 0.0)
+                dt = 0.0
         self.last_us = t_us
-        w = 1.0 - math.exp(-dt / self.tau_s)
-        self.m2 += w * (z * z - self.m2)
-        if self.prev == self.prev:
-            self.c1 += w * (z * self.prev - self.c1)
+        w = 1.0 - _exp(-dt / self.tau_s)
+        m2 = self.m2
+        self.m2 = m2 + w * (z * z - m2)
+        prev = self.prev
+        if prev == prev:
+            self.c1 += w * (z * prev - self.c1)
         self.prev = z
 
     def gap(self) -> None:

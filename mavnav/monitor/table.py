@@ -29,6 +29,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..fastinit import fast_frozen_init
 from .verdict import HYPOTHESES, Verdict, report_sources
 
 # situation -> (state of the candidate sources, whether they enter the output, action)
@@ -41,7 +42,7 @@ TABLE = {
 }
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Judgement:
     situation: str
     candidates: frozenset  # hypotheses
@@ -61,6 +62,12 @@ class Judgement:
         return TABLE[self.situation][2]
 
 
+fast_frozen_init(Judgement)  # one (at least) per epoch
+
+# the situation of most epochs, one object (a Judgement is frozen)
+_CLEAR = Judgement("clear", frozenset(), frozenset(), "consistent")
+
+
 def _why(vs) -> str:
     return "; ".join(v.text for v in vs if v.text)
 
@@ -77,10 +84,20 @@ def _cleared(passes: list[Verdict], failed: list[Verdict]) -> frozenset:
 def judge(verdicts: list[Verdict], live: frozenset = frozenset(HYPOTHESES)) -> Judgement:
     """The situation the verdicts describe. ``live``: hypotheses still in play
     (an excluded source cannot be the cause of a new failure)."""
-    failed = [v for v in verdicts if v.level == "fail"]
+    failed, passes, suspects = [], [], []
+    for v in verdicts:  # one pass, in order
+        level = v.level
+        if level == "pass":
+            passes.append(v)
+        elif level == "fail":
+            failed.append(v)
+        elif level == "suspect":
+            suspects.append(v)
+    if not failed and not suspects:
+        return _CLEAR  # (what the passes rule out matters only beside a failure or a suspicion)
     # a pass rules a hypothesis out only if it would have seen a fault as large
     # as the largest discrepancy the failures show, as that hypothesis would make it
-    cleared = _cleared([v for v in verdicts if v.level == "pass"], failed)
+    cleared = _cleared(passes, failed)
     if failed:
         cand = frozenset(live)
         for v in failed:
@@ -94,9 +111,8 @@ def judge(verdicts: list[Verdict], live: frozenset = frozenset(HYPOTHESES)) -> J
         implicated = frozenset().union(*(v.implicates for v in failed)) & live
         return Judgement("inconsistent", frozenset(), report_sources(implicated),
                          "no single source explains it: " + _why(failed))
-    suspects = [v for v in verdicts if v.level == "suspect"]
     if suspects:
         implicated = frozenset().union(*(v.implicates for v in suspects)) & live
         cand = implicated - cleared
         return Judgement("suspect", cand, report_sources(cand), _why(suspects))
-    return Judgement("clear", frozenset(), frozenset(), "consistent")
+    return _CLEAR

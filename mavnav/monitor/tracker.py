@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Optional
 
-from ..report import AlarmEvent, SourceStatus
+from ..report import NAN, AlarmEvent, SourceStatus
 
 
 class SourceTracker:
@@ -48,3 +48,9 @@ class SourceTracker:
             st = self._status = SourceStatus(state=self.state, since_t_s=self.since_us * 1e-6,  # type: ignore[arg-type]
                                              reason=self.reason)
         return st
+
+    def window_status(self, window_stat: float, window_high: float, rejected: int) -> SourceStatus:
+        """``status(window_stat=..., window_low=NaN, window_high=..., rejected=...)``,
+        built positionally (once per source per epoch)."""
+        return SourceStatus(self.state, self.since_us * 1e-6, self.reason,  # type: ignore[arg-type]
+                            window_stat, NAN, window_high, rejected)

@@ -59,8 +59,19 @@ fast_frozen_init(Verdict)  # built per test per epoch: the cheaper __init__ of m
 def live_hypotheses(excluded) -> frozenset:
     """The hypotheses still in play with these report sources excluded.
     Excluding ``baro_ins`` takes the baro out; the INS still drives every
-    channel, so it stays a hypothesis."""
-    return frozenset(h for h in HYPOTHESES if h is INS or REPORT_SOURCE[h] not in excluded)
+    channel, so it stays a hypothesis. (Asked every epoch, of a handful of
+    distinct sets: each answer is kept.)"""
+    key = frozenset(excluded)
+    live = _LIVE.get(key)
+    if live is None:
+        if len(_LIVE) >= _LIVE_MAX:
+            _LIVE.clear()
+        live = _LIVE[key] = frozenset(h for h in HYPOTHESES if h is INS or REPORT_SOURCE[h] not in key)
+    return live
+
+
+_LIVE: dict = {}  # frozenset(excluded) -> live_hypotheses(excluded)
+_LIVE_MAX = 64  # bounded: the report sources' subsets are 16
 
 
 def report_sources(hyps) -> frozenset:

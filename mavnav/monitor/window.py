@@ -20,9 +20,13 @@ class RejectionWindow:
         self.rejected = 0
 
     def push(self, t_us: int, rejected: bool) -> None:
+        q = self._q
         if rejected:
-            self._q.append(t_us)
-        self.expire(t_us)
+            q.append(t_us)
+        limit = t_us - self.length_us  # expire(t_us), inline
+        while q and q[0] <= limit:
+            q.popleft()
+        self.rejected = len(q)
 
     def expire(self, t_us: int) -> None:
         """Forget the rejections older than the window at ``t_us``."""
