@@ -137,20 +137,8 @@ class Monitor:
             self.rates[GNSS_S].push(s.t_us)
             self.builder._on_aux(s, "gnss")
             return []
-        if isinstance(s, SpecificForceUp):
-            self.rates[IMU_S].push(s.t_us)
-        elif isinstance(s, BaroHeight):
-            self.raw[BARO_S] = s.height_ref_m
-            self.rates[BARO_S].push(s.t_us)
-        elif isinstance(s, GnssHeight):
-            self.raw[GNSS_S] = s.height_ref_m
-            self.rates[GNSS_S].push(s.t_us)
-        elif isinstance(s, RangeHeight):
-            self.raw[RNG_S] = s.height_agl_m
-            self.rates[RNG_S].push(s.t_us)
-        elif isinstance(s, AutopilotHeight):
-            self.raw[AUTOPILOT] = s.height_ref_m
-        elif isinstance(s, Reboot):
+        # (the sample types above are final: no subclass reaches the events below)
+        if isinstance(s, Reboot):
             self.counters["reboots"] += 1
             self._on_reboot(s)
             return []

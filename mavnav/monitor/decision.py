@@ -40,36 +40,26 @@ def pair_reports(bank: ChannelBank, available, thresholds) -> tuple[PairReport, 
     return tuple(out)
 
 
-def diff_sigmas(bank: ChannelBank, floor_var=(0.0, 0.0, 0.0)) -> np.ndarray:
-    """sqrt(P_a + P_b - 2 P_ab) of the heights, for every pair; each channel's
-    ``P_HH`` raised to at least ``floor_var[c]`` (its sensor's own variance)."""
-    out = np.empty(len(PAIRS))
+def _diff_sigma_list(bank: ChannelBank, floor_var) -> list[float]:
     ph = bank.P[:, 0, 0].tolist()  # Python floats: the same arithmetic without numpy scalars
     pc = bank.Pc[:, 0, 0].tolist()
+    out = []
     for p, (a, b) in enumerate(PAIRS):
-        pa, pb = ph[a], ph[b]
-        v = max(pa, floor_var[a]) + max(pb, floor_var[b]) - 2.0 * pc[p]
-        out[p] = math.sqrt(max(v, 1e-12))
+        v = max(ph[a], floor_var[a]) + max(ph[b], floor_var[b]) - 2.0 * pc[p]
+        out.append(math.sqrt(max(v, 1e-12)))
     return out
 
 
+def diff_sigmas(bank: ChannelBank, floor_var=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """sqrt(P_a + P_b - 2 P_ab) of the heights, for every pair; each channel's
+    ``P_HH`` raised to at least ``floor_var[c]`` (its sensor's own variance)."""
+    return np.array(_diff_sigma_list(bank, floor_var))
+
+
 def pair_reports_scaled(bank: ChannelBank, available, floor_var, k: float) -> tuple[PairReport, ...]:
-    """``pair_reports(bank, available, k * diff_sigmas(bank, floor_var))`` on
-    Python floats, per epoch: the same products, sums and square roots in the
-    same order, without the arrays between them (``tests/test_monitor_decision.py``)."""
-    ph = bank.P[:, 0, 0].tolist()
-    pc = bank.Pc[:, 0, 0].tolist()
-    h = bank.x[:, 0].tolist()
-    out = []
-    for p, (a, b) in enumerate(PAIRS):
-        pa, pb = ph[a], ph[b]
-        fa, fb = floor_var[a], floor_var[b]
-        v = (fa if fa > pa else pa) + (fb if fb > pb else pb) - 2.0 * pc[p]  # max(), as max() picks (NaN too)
-        thr = k * math.sqrt(1e-12 if 1e-12 > v else v)
-        diff = h[a] - h[b]
-        valid = bool(available[a] and available[b])
-        out.append(PairReport(PAIR_NAMES[p], diff, thr, valid and abs(diff) > thr, valid))
-    return tuple(out)
+    """``pair_reports(bank, available, k * diff_sigmas(bank, floor_var))``,
+    per epoch, without the array between them (``tests/test_monitor_decision.py``)."""
+    return pair_reports(bank, available, [k * s for s in _diff_sigma_list(bank, floor_var)])
 
 
 __all__ = ["Decision", "pair_reports", "pair_reports_scaled", "diff_sigmas", "GNSS", "RNG", "BARO", "PAIRS"]
