@@ -90,3 +90,27 @@ def test_subset_weights_are_the_subsets_blue():
             got = _subset_weights(cov, drop)
             assert got[drop] == 0.0
             assert [got[k] for k in keep] == pytest.approx(w, rel=1e-9, abs=1e-12)
+
+
+def test_a_subset_without_the_baro_is_no_better_than_its_own_sensor():
+    """An aux channel that takes the baro's changes, pinned to 0.5 m by them,
+    with a sensor of 10 m: the baro's fault moves it too, so the subset without
+    the baro is held to the sensor's own 10 m (k_md * 10 m at least); without
+    the lean the same channels give a level of a few metres."""
+    cov = [[0.25, 0.2], [0.2, 0.25]]  # channel 0: the aux channel; channel 1: the baro+INS channel
+    s0, w = _fused(cov)
+    plain = separation_levels(cov, w, K_FA, K_MD)
+    leaned = separation_levels(cov, w, K_FA, K_MD, lean=1, own_var=[100.0, 0.0])
+    assert plain[1] < 4.0
+    assert leaned[1] >= K_MD * 10.0
+    assert leaned[0] == plain[0]  # the aux channel's own fault: the baro+INS subset does not lean on it
+    # the closed form: the subset is channel 0 alone, its variance plus its sensor's
+    sd_delta = math.sqrt(_quad_delta(cov, w, [1.0, 0.0]))
+    assert leaned[1] == pytest.approx(K_FA * sd_delta + K_MD * math.sqrt(0.25 + 100.0))
+    vpl, limit = protection_level(s0, cov, w, K_FF, K_FA, K_MD, lean=1, own_var=[100.0, 0.0])
+    assert limit == 1 and vpl == pytest.approx(leaned[1])
+
+
+def _quad_delta(cov, w, wi):
+    d = [a - b for a, b in zip(w, wi)]
+    return sum(d[i] * d[j] * cov[i][j] for i in range(len(d)) for j in range(len(d)))

@@ -1142,7 +1142,13 @@ class HypothesisLogic:
             cov = bank.height_cov(idx)
             h, sigma, w = fuse_heights([bank.x[c, 0] for c in idx], cov, self.f.inverse_variance)
             if self.f.separation_protection:
-                vpl, _ = protection_level(sigma, cov, w, self.k_ff, self.k_cmp, self.k_md)
+                lean, own = -1, None
+                if self.f.own_sensor_floor and BARO in idx:
+                    lean = idx.index(BARO)
+                    lim2 = self.m.alert_limit_m ** 2
+                    own = [v if c != BARO and bank.baro_on[c] and v > lim2 else 0.0
+                           for c, v in ((c, self.sensor_var_floor[c]) for c in idx)]
+                vpl, _ = protection_level(sigma, cov, w, self.k_ff, self.k_cmp, self.k_md, lean, own)
         return h, sigma, used, vpl
 
     def _restart_held(self, t: int, j: Judgement, aux) -> Judgement:

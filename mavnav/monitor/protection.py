@@ -25,7 +25,7 @@ Pure: the channels' height covariance in, the levels out.
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from typing import Optional, Sequence
 
 
 
@@ -55,10 +55,18 @@ def _quad(w: Sequence[float], cov: Sequence[Sequence[float]]) -> float:
 
 
 def separation_levels(cov: Sequence[Sequence[float]], weights: Sequence[float], k_fa: float,
-                      k_md: float) -> list[float]:
+                      k_md: float, lean: int = -1, own_var: Optional[Sequence[float]] = None) -> list[float]:
     """``PL_i`` for the fault of each channel of the output, in order: ``cov``
     is the height error covariance of the channels in the output (at most
-    three) and ``weights`` their weights in the fused height."""
+    three) and ``weights`` their weights in the fused height.
+
+    ``lean``: the channel of a source the others lean on (the baro, whose
+    changes the aux channels take), -1 none; ``own_var``: each channel's own
+    sensor's noise variance. A fault of the leaned-on source moves the
+    channels that lean on it too, so the subset without it is no better than
+    its own sensors: its sigma takes ``sum(w_k^2 own_var_k)`` over the
+    channels left (a GNSS reporting 10 m cannot vouch for the baro at 4 m,
+    however well the baro's own rows pin its channel)."""
     n = len(weights)
     if n == 1:
         return [math.inf]
@@ -66,19 +74,23 @@ def separation_levels(cov: Sequence[Sequence[float]], weights: Sequence[float], 
     for c in range(n):
         wi = _subset_weights(cov, c)
         sd_delta = math.sqrt(_quad([a - b for a, b in zip(weights, wi)], cov))
-        out.append(k_fa * sd_delta + k_md * math.sqrt(_quad(wi, cov)))
+        var_i = _quad(wi, cov)
+        if c == lean and own_var is not None:
+            var_i += sum(w * w * v for w, v in zip(wi, own_var))
+        out.append(k_fa * sd_delta + k_md * math.sqrt(var_i))
     return out
 
 
 def protection_level(sigma_fused_m: float, cov: Sequence[Sequence[float]], weights: Sequence[float],
-                     k_ff: float, k_fa: float, k_md: float) -> tuple[float, int]:
+                     k_ff: float, k_fa: float, k_md: float, lean: int = -1,
+                     own_var: Optional[Sequence[float]] = None) -> tuple[float, int]:
     """The vertical protection level, and the index (into ``cov``) of the
     channel whose fault hypothesis sets it (-1: the fault-free bound
     ``k_ff * sigma_fused_m``). No channel in the output: infinite."""
     if sigma_fused_m != sigma_fused_m or not weights:
         return math.inf, -1
     vpl, limit = k_ff * sigma_fused_m, -1
-    for c, pl in enumerate(separation_levels(cov, weights, k_fa, k_md)):
+    for c, pl in enumerate(separation_levels(cov, weights, k_fa, k_md, lean, own_var)):
         if not pl <= vpl:
             vpl, limit = pl, c
     return vpl, limit
