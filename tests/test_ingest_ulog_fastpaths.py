@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from mavnav.ingest.onboard import ulog as ulog_mod
-from mavnav.ingest.onboard.ulog import _FormatCheck, _gather_rows, _gather_rows_reference, read_ulog
+from mavnav.ingest.onboard.ulog import (_FormatCheck, _fill_buffers, _fill_buffers_reference, _gather_rows,
+                                        _gather_rows_reference, read_ulog)
 from tests.support.paths import SHARED_FLIGHTLOGS
 
 pyulog = pytest.importorskip("pyulog")
@@ -39,6 +40,58 @@ def test_gather_refuses_rows_beyond_the_buffer():
         _gather_rows(buf, np.array([95], dtype=np.int64), 8)
 
 
+class _Sub:
+    """What :func:`_fill_buffers` reads of a pyulog subscription."""
+
+    def __init__(self, item: int, extra: int, t_off: int):
+        self.dtype = np.dtype((np.void, item))
+        self.max_data_size = item + extra
+        self.timestamp_offset = t_off
+        self.buffer = bytearray()
+
+
+class _U:
+    _file_corrupt = False
+
+
+def _fill(fn, buf, spec, known, d_ids, d_offs, d_sizes):
+    subs = {i: _Sub(*a) for i, a in spec.items()}
+    u = _U()
+    off, ts = fn(u, buf, subs, known, d_ids, d_offs, d_sizes)
+    return off.tolist(), off.dtype, ts.tolist(), ts.dtype, {i: bytes(s.buffer) for i, s in subs.items()}, u._file_corrupt
+
+
+@pytest.mark.parametrize("seed", (1, 2, 3))
+def test_one_pass_fill_matches_the_per_subscription_reference(seed):
+    """Rows of several subscriptions interleaved, ids without one, rows before their
+    subscription (not known), rows too short or too long: the same bytes per buffer,
+    offsets, timestamps and corruption flag."""
+    rng = np.random.default_rng(seed)
+    spec = {3: (20, 0, 0), 7: (9, 3, 1), 40: (33, 8, 25)}  # msg_id -> (item, padding allowed, timestamp offset)
+    ids = np.array([3, 7, 40, 5, 41], dtype=np.int64)
+    n = 400
+    d_ids = ids[rng.integers(0, ids.size, n)]
+    d_sizes = np.array([spec.get(int(i), (12, 0, 0))[0] + 2 for i in d_ids], dtype=np.int64)
+    d_sizes += rng.choice([0, 0, 0, 0, 2, -1, 9], n)  # some padded, some of the wrong size
+    d_offs = np.cumsum(np.concatenate([[16], d_sizes[:-1] + 3])).astype(np.int64)
+    buf = rng.integers(0, 256, int(d_offs[-1] + d_sizes[-1] + 3), dtype=np.uint8)
+    known = rng.random(n) > 0.1
+    got = _fill(_fill_buffers, buf, spec, known, d_ids, d_offs, d_sizes)
+    want = _fill(_fill_buffers_reference, buf, spec, known, d_ids, d_offs, d_sizes)
+    assert got == want
+    assert want[5] and all(want[4].values())  # the case has corrupt rows and rows for every subscription
+    clean = d_sizes == np.array([spec.get(int(i), (12, 0, 0))[0] + 2 for i in d_ids])
+    assert _fill(_fill_buffers, buf, spec, known & clean, d_ids, d_offs, d_sizes)[5] is False
+    # rows of one subscription swapped: the buffers differ (the comparison can fail)
+    swapped = d_offs.copy()
+    a, b = np.flatnonzero(known & (d_ids == 3) & clean)[:2]
+    swapped[[a, b]] = swapped[[b, a]]
+    assert _fill(_fill_buffers, buf, spec, known, d_ids, swapped, d_sizes)[4] != got[4]
+    empty = np.zeros(0, dtype=np.int64)
+    assert _fill(_fill_buffers, buf, spec, known[:0], empty, empty, empty) == \
+        _fill(_fill_buffers_reference, buf, spec, known[:0], empty, empty, empty)
+
+
 def _digest(rec) -> list:
     out = [rec.format, rec.firmware, rec.vehicle, rec.home_alt_msl_m, rec.origin_alt_msl_m, rec.messages,
            rec.damage, rec.bytes_read]
@@ -57,6 +110,19 @@ def test_decode_with_the_reference_gather_is_the_same(name, monkeypatch):
         pytest.skip(f"committed flight log {p} not present")
     fast = _digest(read_ulog(p))
     monkeypatch.setattr(ulog_mod, "_gather_rows", _gather_rows_reference)
+    ref = _digest(read_ulog(p))
+    assert fast[3] is not None or fast[5] is not None
+    assert fast == ref
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize("name", ["frs_motor_failure_hexa.ulg", "aut_quadrotor_local.ulg", "aut_plane_plexus.ulg"])
+def test_decode_with_the_reference_fill_is_the_same(name, monkeypatch):
+    p = SHARED_FLIGHTLOGS / name
+    if not p.is_file():
+        pytest.skip(f"committed flight log {p} not present")
+    fast = _digest(read_ulog(p))
+    monkeypatch.setattr(ulog_mod, "_fill_buffers", _fill_buffers_reference)
     ref = _digest(read_ulog(p))
     assert fast[3] is not None or fast[5] is not None
     assert fast == ref
@@ -163,3 +229,28 @@ def test_format_check_says_safe_only_where_pyulog_parses(name):
         assert _pyulog_parses(FORMATS, name)
     elif name not in ("dotted", "huge"):  # refused by the check, and pyulog raises too (those two it parses, slowly)
         assert not _pyulog_parses(FORMATS, name)
+
+
+def _last_timestamps_reference(start_ts, ro, rt):
+    """The running maximum of the row timestamps in file order, built at once (as before)."""
+    order = np.argsort(ro, kind="stable")
+    ro, run_max = ro[order], np.maximum.accumulate(rt[order])
+
+    def last_ts(o):
+        j = int(np.searchsorted(ro, o))
+        return max(start_ts, int(run_max[j - 1])) if j else start_ts
+
+    return last_ts
+
+
+def test_last_timestamps_built_lazily_give_the_same_times():
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        n = int(rng.integers(0, 40))
+        ro = rng.choice(5000, n, replace=False).astype(np.int64)
+        rt = rng.integers(0, 2 ** 40, n).astype(np.uint64)
+        start = int(rng.integers(0, 2 ** 40))
+        got, want = ulog_mod._last_timestamps(start, ro, rt), _last_timestamps_reference(start, ro, rt)
+        asks = [int(q) for q in rng.integers(0, 5100, 10)] + [int(o) for o in ro] + [10 ** 9, 0]
+        rng.shuffle(asks)
+        assert [got(q) for q in asks] == [want(q) for q in asks]

@@ -40,6 +40,13 @@ from typing import Optional
 
 import numpy as np
 
+try:  # np.linalg.qr's own gufuncs (numpy >= 1.22): its LAPACK calls without the wrapper's overhead
+    from numpy.linalg import _umath_linalg
+
+    _qr_raw, _qr_reduced = _umath_linalg.qr_r_raw, _umath_linalg.qr_reduced
+except (ImportError, AttributeError):  # pragma: no cover
+    _qr_raw = _qr_reduced = None
+
 
 class KinkSeries:
     """``(t_s, y)`` over the last ``window_s``."""
@@ -74,7 +81,29 @@ class KinkSeries:
 def kink_fit(s: np.ndarray, y: np.ndarray, taus: np.ndarray, quadratic: bool) -> tuple[np.ndarray, np.ndarray]:
     """``(g'e, g'g)`` at each onset in ``taus`` (``s`` and ``taus`` relative
     times), the nuisance being an offset and a slope, and a curvature if
-    ``quadratic`` (an accelerometer bias)."""
+    ``quadratic`` (an accelerometer bias). :func:`kink_fit_reference`'s
+    arithmetic, the orthonormal basis from the two LAPACK calls
+    ``np.linalg.qr`` makes (``dgeqrf``, ``dorgqr``) without its wrapper
+    (checks, R, error state: the series are finite, :meth:`KinkSeries.push`);
+    ``tests/test_monitor_kink.py`` checks the two agree bit for bit."""
+    if _qr_raw is None:  # pragma: no cover - numpy without its gufuncs
+        return kink_fit_reference(s, y, taus, quadratic)
+    X = np.empty((s.size, 3 if quadratic else 2))  # the nuisance columns, as the reference stacks them
+    X[:, 0] = 1.0
+    X[:, 1] = s
+    if quadratic:
+        np.multiply(s, s, out=X[:, 2])
+    q = _qr_reduced(X, _qr_raw(X, signature="d->d"), signature="dd->d")  # dgeqrf in place, then dorgqr
+    qt = q.T
+    e = y - q @ (qt @ y)
+    G = np.maximum(s[:, None] - taus[None, :], 0.0)
+    MG = G - q @ (qt @ G)
+    return G.T @ e, np.einsum("ij,ij->j", G, MG)
+
+
+def kink_fit_reference(s: np.ndarray, y: np.ndarray, taus: np.ndarray,
+                       quadratic: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The readable form of :func:`kink_fit`."""
     cols = [np.ones_like(s), s] + ([s * s] if quadratic else [])
     # the projection off the nuisance columns through their orthonormal basis
     # (X = QR; the same projection as X pinv(X), without the SVD)

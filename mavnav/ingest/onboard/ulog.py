@@ -633,7 +633,90 @@ def _fill_buffers(u, buf: np.ndarray, subs: dict, known: np.ndarray, d_ids: np.n
                   d_sizes: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
     """Append each kept subscription's rows to its buffer, as pyulog does
     (rows of the wrong size skipped as corrupt); returns the offsets and
-    timestamps of the rows appended."""
+    timestamps of the rows appended. Every kept row is found and copied in
+    one pass over the data rows and the file (:func:`_gather_by_sub`), not
+    one pass per subscription; the same buffers and results as
+    :func:`_fill_buffers_reference` (``tests/test_ingest_ulog_fastpaths.py``)."""
+    ts_off, ts_val = [np.zeros(0, dtype=np.int64)], [np.zeros(0, dtype=np.uint64)]
+    if not subs or not d_ids.size:
+        return ts_off[0], ts_val[0]
+    ids = np.fromiter(subs, np.int64, len(subs))
+    items = np.array([sub.dtype.itemsize for sub in subs.values()], dtype=np.int64)
+    maxs = np.array([sub.max_data_size for sub in subs.values()], dtype=np.int64)
+    table = np.full(max(int(ids.max()), int(d_ids.max())) + 1, -1, dtype=np.int64)
+    table[ids] = np.arange(ids.size)
+    flat, rows, offs, corrupt = _gather_by_sub(buf, d_offs, d_sizes, d_ids, known, table, items, maxs)
+    if corrupt:  # pyulog skips a row of the wrong size as corrupt
+        u._file_corrupt = True
+    at = 0
+    for k, sub in enumerate(subs.values()):
+        lo, hi, item = int(rows[k]), int(rows[k + 1]), int(items[k])
+        if lo == hi:
+            continue
+        rows_b = flat[at:at + (hi - lo) * item].reshape(hi - lo, item)
+        at += (hi - lo) * item
+        sub.buffer += rows_b.data  # the bytes, without a copy of them first
+        t = sub.timestamp_offset
+        ts_off.append(offs[lo:hi])
+        ts_val.append(np.ascontiguousarray(rows_b[:, t:t + 8]).view("<u8").reshape(-1))
+    return np.concatenate(ts_off), np.concatenate(ts_val)
+
+
+@njit(cache=True)
+def _gather_by_sub(buf, d_offs, d_sizes, d_ids, known, table, items, maxs):  # pragma: no cover - compiled
+    """The kept data rows (``known``, id of a subscription: ``table[id] = k``,
+    ``-1`` none) of the right size (``items[k] <= size - 2 <= maxs[k]``;
+    another size sets ``corrupt``), ``items[k]`` bytes from 5 bytes into
+    each message, packed per subscription in file order: ``(bytes, rows,
+    offsets, corrupt)``, subscription ``k``'s rows ``rows[k] .. rows[k + 1]``
+    of ``offsets`` (their messages' offsets) and the bytes of those rows one
+    after the other. What :func:`_gather_rows` gives per subscription."""
+    nsub = items.shape[0]
+    n = d_offs.shape[0]
+    take = np.full(n, -1, np.int64)
+    counts = np.zeros(nsub, np.int64)
+    corrupt = False
+    for r in range(n):
+        if not known[r]:
+            continue
+        k = table[d_ids[r]]
+        if k < 0:
+            continue
+        size = d_sizes[r] - 2
+        if size < items[k] or size > maxs[k]:
+            corrupt = True
+            continue
+        take[r] = k
+        counts[k] += 1
+    rows = np.zeros(nsub + 1, np.int64)
+    byte_at = np.zeros(nsub + 1, np.int64)
+    for k in range(nsub):
+        rows[k + 1] = rows[k] + counts[k]
+        byte_at[k + 1] = byte_at[k] + counts[k] * items[k]
+    out = np.empty(byte_at[nsub], np.uint8)
+    offs = np.empty(rows[nsub], np.int64)
+    row_at = rows[:nsub].copy()
+    b_at = byte_at[:nsub].copy()
+    for r in range(n):
+        k = take[r]
+        if k < 0:
+            continue
+        item = items[k]
+        s = d_offs[r] + 5
+        if s < 0 or s + item > buf.size:
+            raise IndexError("a row beyond the buffer")
+        d = b_at[k]
+        out[d:d + item] = buf[s:s + item]
+        b_at[k] = d + item
+        offs[row_at[k]] = d_offs[r]
+        row_at[k] += 1
+    return out, rows, offs, corrupt
+
+
+def _fill_buffers_reference(u, buf: np.ndarray, subs: dict, known: np.ndarray, d_ids: np.ndarray, d_offs: np.ndarray,
+                  d_sizes: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """The readable form of :func:`_fill_buffers`: one subscription at a time
+    (each a pass over the data rows and the file)."""
     ts_off, ts_val = [np.zeros(0, dtype=np.int64)], [np.zeros(0, dtype=np.uint64)]
     for msg_id, sub in subs.items():
         rows = known & (d_ids == msg_id)
@@ -676,12 +759,22 @@ def _gather_rows_reference(buf: np.ndarray, starts: np.ndarray, item: int) -> np
 
 def _last_timestamps(start_ts: int, ro: np.ndarray, rt: np.ndarray) -> Callable[[int], int]:
     """pyulog's ``_last_timestamp`` before the message at an offset: the
-    largest data timestamp so far (``start_ts`` before any)."""
-    order = np.argsort(ro, kind="stable")
-    ro, run_max = ro[order], np.maximum.accumulate(rt[order])
+    largest data timestamp so far (``start_ts`` before any). Past every row
+    (the end of the file, where it is always asked) that is the largest of
+    all; the running maximum in file order is built only when a message
+    among the rows asks (a parameter change, a dropout)."""
+    end = int(ro.max()) if ro.size else -1
+    top = max(start_ts, int(rt.max())) if rt.size else start_ts
+    running: list = []
 
     def last_ts(o: int) -> int:
-        j = int(np.searchsorted(ro, o))
+        if o > end:
+            return top
+        if not running:
+            order = np.argsort(ro, kind="stable")
+            running.extend((ro[order], np.maximum.accumulate(rt[order])))
+        ro_s, run_max = running
+        j = int(np.searchsorted(ro_s, o))
         return max(start_ts, int(run_max[j - 1])) if j else start_ts
 
     return last_ts
