@@ -475,19 +475,6 @@ class MonitorConfig(_Section):
     # landing, and with the 4 s reading it adds cautions on 2 Hz receivers
     # (BENCHMARKS.md, session 9).
     baro_doppler_scale_frac: float = Field(0.0, ge=0, le=1)
-    # Ground effect: rotor wash near the ground moves the static pressure. A
-    # baro/Doppler reading whose window starts or ends below ground_effect_height_m
-    # above the reference (the take-off point) while the vehicle moved
-    # ground_effect_min_move_m or more (a take-off or a landing; not a vehicle
-    # standing on the ground) carries baro_ground_effect_sigma_m more error, in
-    # quadrature. Sized from the real flights (bench/ground_effect.py): on the
-    # healthy modern ones (flug, rrc) the 99th percentile of |e| over 10 s in such
-    # windows exceeds that of the rest by 0-1.8 m in quadrature (rrc_hover_good_1
-    # 1.88 against 0.80 m, flug_log_70 1.90 against 0.68 m), up to 0.7 m as a
-    # sigma (the 99th percentile is 2.58 sigma). 0 turns it off.
-    ground_effect_height_m: float = Field(2.0, ge=0)
-    ground_effect_min_move_m: float = Field(0.5, ge=0)
-    baro_ground_effect_sigma_m: float = Field(0.6, ge=0)
     # The GNSS altitude's drift against the baro where the receiver reports no
     # Doppler velocity (features.gnss_drift_check, monitor/drift.py): the slope
     # of GNSS - baro fitted over gnss_drift_window_s, against k(false_alarm_prob)

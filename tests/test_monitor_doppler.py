@@ -380,29 +380,3 @@ def test_the_gnss_disagreeing_with_its_own_doppler_is_not_cleared_by_its_innovat
                                scale_m=1.5)
     j = judge([v, innovations_pass])
     assert j.situation == "isolated" and j.sources == frozenset(("gnss",))
-
-
-@pytest.mark.unit
-def test_ground_effect_widens_take_off_and_landing_readings_only():
-    """A window that starts or ends below the ground-effect height while the
-    vehicle moved through it carries the ground-effect error; a climb above it,
-    and a vehicle standing on the ground, do not."""
-    c = DopplerCheck(10.0, 1.5, sigma_m=0.4, ground_m=2.0, ground_sigma_m=0.6, ground_move_m=0.5)
-    t = np.arange(0.0, 60.0, 0.2)
-    # on the ground 0-15 s, climb at 1 m/s to 10 m (15-25 s), hover, descend 45-55 s, on the ground
-    v = np.where((t >= 15) & (t < 25), 1.0, np.where((t >= 45) & (t < 55), -1.0, 0.0))
-    h = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * 0.2)])
-    flags = {}
-    for ti, hi, vi in zip(t, h, v):
-        if c.push(int(round(ti * 1e6)), hi, vi) is not None:
-            flags[round(ti, 1)] = (c.last_ground, c.error_m(c.last_disp_m, c.last_ground))
-    assert flags[12.0] == (False, pytest.approx(0.4))  # standing on the ground
-    assert flags[20.0] == (True, pytest.approx(math.hypot(0.4, 0.6)))  # the take-off
-    assert flags[40.0][0] is False  # hovering at 10 m
-    assert flags[34.0][0] is False  # a window of climb from 4 m to 10 m: above the ground's reach
-    assert flags[56.0][0] is True  # the landing
-    assert flags[59.8][0] is True and flags[59.8][1] > 0.4  # the window still holds the last of it
-    off = DopplerCheck(10.0, 1.5, sigma_m=0.4)  # the default: no ground term
-    for ti, hi, vi in zip(t, h, v):
-        off.push(int(round(ti * 1e6)), hi, vi)
-        assert off.last_ground is False

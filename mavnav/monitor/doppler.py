@@ -60,12 +60,10 @@ class DopplerCheck:
     landing does not hide a ramp that began after it."""
 
     __slots__ = ("window_us", "max_gap_us", "min_span_us", "sigma_m", "scale_frac", "hist", "last_e_m",
-                 "last_disp_m", "last_span_s", "last_us", "ground_m", "ground_sigma_m", "ground_move_m",
-                 "last_ground")
+                 "last_disp_m", "last_span_s", "last_us")
 
     def __init__(self, window_s: float, max_gap_s: float, min_span_s: Optional[float] = None,
-                 sigma_m: float = 1.0, scale_frac: float = 0.0, ground_m: float = 0.0,
-                 ground_sigma_m: float = 0.0, ground_move_m: float = 0.0):
+                 sigma_m: float = 1.0, scale_frac: float = 0.0):
         self.window_us = int(window_s * 1e6)
         self.max_gap_us = int(max_gap_s * 1e6)
         # the shortest span that gives a reading (default 80 % of the window)
@@ -78,13 +76,6 @@ class DopplerCheck:
         self.last_disp_m = math.nan  # the Doppler's integral over the same window: how far the vehicle moved
         self.last_span_s = math.nan  # the span the last reading covers
         self.last_us: Optional[int] = None
-        # ground effect: a reading whose window starts or ends below ground_m (height
-        # above the reference) while the vehicle moved ground_move_m or more through it
-        # (a take-off or a landing) carries ground_sigma_m more error
-        self.ground_m = ground_m
-        self.ground_sigma_m = ground_sigma_m
-        self.ground_move_m = ground_move_m
-        self.last_ground = False
 
     def clear(self) -> None:
         self.hist.clear()
@@ -117,20 +108,15 @@ class DopplerCheck:
             t_k, h_k, _, i_k = h[k]
             e_k, d_k = (height_m - h_k) - (integral - i_k), integral - i_k
             if abs(e_k) * self.error_m(disp) > abs(e) * self.error_m(d_k):
-                t_j, h_j, e, disp = t_k, h_k, e_k, d_k
-        self.last_ground = bool(self.ground_sigma_m > 0.0 and min(h_j, height_m) < self.ground_m
-                                and abs(disp) >= self.ground_move_m)
+                t_j, e, disp = t_k, e_k, d_k
         self.last_e_m = e
         self.last_disp_m = disp
         self.last_span_s = (t_us - t_j) * 1e-6
         self.last_us = t_us
         return e
 
-    def error_m(self, disp_m: float, ground: bool = False) -> float:
-        """The reading's own error over a span in which the vehicle moved ``disp_m``
-        (through the ground effect's height: ``ground``)."""
-        if ground:
-            return math.sqrt(self.sigma_m ** 2 + (self.scale_frac * disp_m) ** 2 + self.ground_sigma_m ** 2)
+    def error_m(self, disp_m: float) -> float:
+        """The reading's own error over a span in which the vehicle moved ``disp_m``."""
         return math.hypot(self.sigma_m, self.scale_frac * disp_m)
 
 

@@ -225,10 +225,7 @@ class HypothesisLogic:
         self.baro_doppler = DopplerCheck(m.baro_doppler_window_s, m.doppler_max_gap_s,
                                          min_span_s=MIN_SPAN_FRAC * m.doppler_window_s,
                                          sigma_m=m.baro_doppler_sigma_m,
-                                         scale_frac=m.baro_doppler_scale_frac,
-                                         ground_m=m.ground_effect_height_m,
-                                         ground_sigma_m=m.baro_ground_effect_sigma_m,
-                                         ground_move_m=m.ground_effect_min_move_m)
+                                         scale_frac=m.baro_doppler_scale_frac)
         self.scale["baro_doppler"] = ResidualScale(m.window_scale_tau_s, 1.0, sc[2], max_phi=0.0)
         self.baro_doppler_ex = Exceedance()
         # without a Doppler: the GNSS altitude's drift rate against the baro
@@ -421,7 +418,7 @@ class HypothesisLogic:
     def _window_thr(self, check, key: str) -> float:
         """A Doppler window check's threshold for its last reading: k times the
         reading's own error times the check's measured scale."""
-        return self.k_cmp * check.error_m(check.last_disp_m, check.last_ground) * self.scale[key].factor
+        return self.k_cmp * check.error_m(check.last_disp_m) * self.scale[key].factor
 
     def _push_window(self, check, key: str, ex: Exceedance, t_meas: int, h: float, v: float) -> None:
         """One sample into a Doppler window check: its exceedance against the
@@ -434,7 +431,7 @@ class HypothesisLogic:
         thr = self._window_thr(check, key)
         ex.update(t_meas, abs(e) > thr, abs(e) > self.m.suspect_frac * thr)
         if abs(e) <= self.m.suspect_frac * thr:
-            self.scale[key].push(t_meas, e / check.error_m(check.last_disp_m, check.last_ground))
+            self.scale[key].push(t_meas, e / check.error_m(check.last_disp_m))
 
     def _push_doppler(self, t_meas: int, aux) -> None:
         self._push_window(self.doppler, "doppler", self.doppler_ex, t_meas, aux.height_m, aux.vel_up_mps)
