@@ -143,7 +143,57 @@ def main(argv=None) -> int:
             if v.size:
                 print(f"{key} D({lag} s): median {np.median(v):.2f}, 90th percentile {np.percentile(v, 90):.2f} "
                       f"over {v.size} flights")
+    med = {lag: np.median([r["gnss_ap"][lag] for r in res if lag in r.get("gnss_ap", {})])
+           for lag in LAGS_S if any(lag in r.get("gnss_ap", {}) for r in res)}
+    if len(med) >= 3:
+        print("\n" + fit_lines(med))
     return 0
+
+
+def structure_first_order(lag_s, sigma_m: float, tau_s: float):
+    """D(lag) of a first-order Gauss-Markov error (stationary RMS sigma, correlation time tau)."""
+    return np.sqrt(2.0 * sigma_m ** 2 * (1.0 - np.exp(-np.asarray(lag_s, float) / tau_s)))
+
+
+def structure_second_order(lag_s, sigma_m: float, tau_b_s: float, tau_r_s: float):
+    """D(lag) of a second-order error (two real poles: the error decays with tau_b, its rate with
+    tau_r; stationary RMS sigma): autocorrelation (tau_b e^(-L/tau_b) - tau_r e^(-L/tau_r)) / (tau_b - tau_r)."""
+    lag = np.asarray(lag_s, float)
+    rho = (tau_b_s * np.exp(-lag / tau_b_s) - tau_r_s * np.exp(-lag / tau_r_s)) / (tau_b_s - tau_r_s)
+    return np.sqrt(2.0 * sigma_m ** 2 * (1.0 - rho))
+
+
+def fit_lines(med: dict) -> str:
+    """Grid fits of both error models to the median GNSS - autopilot structure function (log error),
+    and what each predicts between two 5 Hz fixes."""
+    lags = np.array(sorted(med), float)
+    target = np.array([med[k] for k in sorted(med)])
+    sigmas = np.arange(0.5, 8.01, 0.25)
+
+    def best(f, grids):
+        out = None
+        for p in ((s, *rest) for s in sigmas for rest in grids):
+            err = float(np.sum((np.log(f(lags, *p)) - np.log(target)) ** 2))
+            if out is None or err < out[0]:
+                out = (err, p)
+        return out
+
+    e1, p1 = best(structure_first_order, [(t,) for t in (30, 60, 100, 150, 200, 300, 500, 1000, 2000)])
+    e2, p2 = best(structure_second_order, [(tb, tr) for tb in (60, 100, 150, 200, 300, 500, 1000)
+                                          for tr in (2, 5, 10, 15, 20, 30, 45, 60) if tr < tb])
+    fmt = "/".join(f"{x:.2f}" for x in target)
+    return "\n".join([
+        f"fit to the median GNSS - autopilot D({'/'.join(f'{x:g}' for x in lags)} s) = {fmt} m (log error):",
+        f"  first order: sigma {p1[0]:.2f} m, tau {p1[1]:g} s -> "
+        f"{'/'.join(f'{x:.2f}' for x in structure_first_order(lags, *p1))} (error {e1:.3f}); "
+        f"between 5 Hz fixes {structure_first_order(0.2, *p1):.3f} m",
+        f"  second order: sigma {p2[0]:.2f} m, tau_b {p2[1]:g} s, tau_r {p2[2]:g} s -> "
+        f"{'/'.join(f'{x:.2f}' for x in structure_second_order(lags, *p2))} (error {e2:.3f}); "
+        f"rate RMS {p2[0] / math.sqrt(p2[1] * p2[2]):.3f} m/s; between 5 Hz fixes "
+        f"{structure_second_order(0.2, *p2):.3f} m",
+        f"  the filter's model today (first order, sigma 4 m, tau 300 s): "
+        f"{'/'.join(f'{x:.2f}' for x in structure_first_order(lags, 4.0, 300.0))}; between 5 Hz fixes "
+        f"{structure_first_order(0.2, 4.0, 300.0):.3f} m"])
 
 
 if __name__ == "__main__":
