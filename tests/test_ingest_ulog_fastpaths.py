@@ -103,26 +103,19 @@ def _digest(rec) -> list:
 
 
 @pytest.mark.realdata
-@pytest.mark.parametrize("name", ["frs_motor_failure_hexa.ulg", "aut_quadrotor_local.ulg"])
-def test_decode_with_the_reference_gather_is_the_same(name, monkeypatch):
+@pytest.mark.parametrize("name,attr,reference", [
+    (name, "_gather_rows", _gather_rows_reference)
+    for name in ("frs_motor_failure_hexa.ulg", "aut_quadrotor_local.ulg")] + [
+    (name, "_fill_buffers", _fill_buffers_reference)
+    for name in ("frs_motor_failure_hexa.ulg", "aut_quadrotor_local.ulg", "aut_plane_plexus.ulg")])
+def test_decode_with_the_reference_form_is_the_same(name, attr, reference, monkeypatch):
+    """The compiled row gather and the one-pass buffer fill each give the decode
+    their readable reference gives."""
     p = SHARED_FLIGHTLOGS / name
     if not p.is_file():
         pytest.skip(f"committed flight log {p} not present")
     fast = _digest(read_ulog(p))
-    monkeypatch.setattr(ulog_mod, "_gather_rows", _gather_rows_reference)
-    ref = _digest(read_ulog(p))
-    assert fast[3] is not None or fast[5] is not None
-    assert fast == ref
-
-
-@pytest.mark.realdata
-@pytest.mark.parametrize("name", ["frs_motor_failure_hexa.ulg", "aut_quadrotor_local.ulg", "aut_plane_plexus.ulg"])
-def test_decode_with_the_reference_fill_is_the_same(name, monkeypatch):
-    p = SHARED_FLIGHTLOGS / name
-    if not p.is_file():
-        pytest.skip(f"committed flight log {p} not present")
-    fast = _digest(read_ulog(p))
-    monkeypatch.setattr(ulog_mod, "_fill_buffers", _fill_buffers_reference)
+    monkeypatch.setattr(ulog_mod, attr, reference)
     ref = _digest(read_ulog(p))
     assert fast[3] is not None or fast[5] is not None
     assert fast == ref
