@@ -308,8 +308,9 @@ class AdaptiveFeatures(_Section):
     # the protection level also bounds a fault of each source in the output that the
     # channel comparison cannot see (solution separation, monitor/protection.py)
     separation_protection: bool = True
-    # ...and a subset without the baro is no better than the sensors left in it,
-    # whose channels take the baro's changes (monitor/protection.py)
+    # ...and a subset without the baro is no better than the sensors left in it
+    # that report a 1-sigma beyond monitor.alert_limit_m: their channels take the
+    # baro's changes, so they cannot vouch for it at that limit (monitor/protection.py)
     own_sensor_floor: bool = True
 
 

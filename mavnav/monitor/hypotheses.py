@@ -1144,10 +1144,11 @@ class HypothesisLogic:
             if self.f.separation_protection:
                 lean, own = -1, None
                 if self.f.own_sensor_floor and BARO in idx:
-                    lean = idx.index(BARO)
-                    lim2 = self.m.alert_limit_m ** 2
-                    own = [v if c != BARO and bank.baro_on[c] and v > lim2 else 0.0
-                           for c, v in ((c, self.sensor_var_floor[c]) for c in idx)]
+                    # the aux sensors that report worse than the alert limit: their
+                    # channels take the baro's changes and cannot vouch for it there
+                    lean, lim2 = idx.index(BARO), self.m.alert_limit_m ** 2
+                    floor = self.sensor_var_floor
+                    own = [floor[c] if c != BARO and bank.baro_on[c] and floor[c] > lim2 else 0.0 for c in idx]
                 vpl, _ = protection_level(sigma, cov, w, self.k_ff, self.k_cmp, self.k_md, lean, own)
         return h, sigma, used, vpl
 
