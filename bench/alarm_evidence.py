@@ -40,7 +40,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 
-from caution_evidence import _Raw  # noqa: E402
+from caution_evidence import _Raw, swings_m  # noqa: E402
 from preamble import announce  # noqa: E402
 from realflights import find_flights  # noqa: E402
 
@@ -52,16 +52,6 @@ from mavnav.errors import MavnavError  # noqa: E402
 # (columns of _Raw rows: t, baro, gnss, autopilot; the rangefinder's height is not among them)
 BLAMED = {"baro_ins": 1, "gnss": 2, "rangefinder": 2}
 OTHER = {"baro_ins": 2, "gnss": 1, "rangefinder": 1}
-
-
-def swings_m(t_s: np.ndarray, d_m: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per sample, the change of ``d_m`` to the sample ``window_s`` later (and its time)."""
-    ok = np.isfinite(d_m)
-    t_s, d_m = t_s[ok], d_m[ok]
-    if len(t_s) < 3:
-        return np.zeros(0), np.zeros(0)
-    j = np.minimum(np.searchsorted(t_s, t_s + window_s), len(t_s) - 1)
-    return t_s, np.abs(d_m[j] - d_m)
 
 
 def departure(t_s: np.ndarray, d_m: np.ndarray, t0_s: float, window_s: float) -> tuple[float, float]:

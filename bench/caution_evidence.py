@@ -50,14 +50,21 @@ class _Raw(Sink):
         self.rows.append((r.t_s, r.baro_height_ref_m, r.gnss_height_ref_m, r.autopilot_height_ref_m))
 
 
-def swing_m(t_s: np.ndarray, d_m: np.ndarray, window_s: float = SWING_WINDOW_S) -> float:
-    """The largest change of ``d_m`` between a sample and the one ``window_s`` later."""
+def swings_m(t_s: np.ndarray, d_m: np.ndarray, window_s: float = SWING_WINDOW_S) -> tuple[np.ndarray, np.ndarray]:
+    """Per finite sample, its time and the change of ``d_m`` to the sample
+    ``window_s`` later (empty with fewer than three)."""
     ok = np.isfinite(d_m)
     t_s, d_m = t_s[ok], d_m[ok]
     if len(t_s) < 3:
-        return math.nan
+        return np.zeros(0), np.zeros(0)
     j = np.minimum(np.searchsorted(t_s, t_s + window_s), len(t_s) - 1)
-    return float(np.max(np.abs(d_m[j] - d_m)))
+    return t_s, np.abs(d_m[j] - d_m)
+
+
+def swing_m(t_s: np.ndarray, d_m: np.ndarray, window_s: float = SWING_WINDOW_S) -> float:
+    """The largest change of ``d_m`` between a sample and the one ``window_s`` later."""
+    _, sw = swings_m(t_s, d_m, window_s)
+    return float(sw.max()) if sw.size else math.nan
 
 
 def _departure(t_s, x_m, ap_m) -> tuple[float, float]:
