@@ -210,6 +210,7 @@ class RunScore:
     max_usable_error_m: float  # largest |error| of an output offered as usable
     available_frac: float  # share of the run's time with a usable output
     alarmed: Tuple[str, ...]  # every source that entered alarm at any time
+    caution_frac: float = math.nan  # share of the run's time in overall caution (NaN: no states)
 
     @property
     def hazardous(self) -> bool:
@@ -250,7 +251,8 @@ def score_run(alarms: Sequence, t_est: Sequence[float], h_est: Sequence[float], 
       ``hazard_m`` from the truth (linear interpolation of the truth, only
       inside its time span); each epoch counts until the next, at most
       ``max_hold_s``. *Available*: the share of that time with a usable
-      output.
+      output; *caution*: the share with the overall state in caution (on a
+      nominal run, the time a healthy flight is shown as doubtful).
     """
     onsets = alarm_onsets(alarms)
     exp, allow = set(expected), set(allowed)
@@ -276,7 +278,7 @@ def score_run(alarms: Sequence, t_est: Sequence[float], h_est: Sequence[float], 
 
     t = np.asarray(t_est, dtype=float)
     h = np.asarray(h_est, dtype=float)
-    haz_s, avail_s, span_s, max_err = 0.0, 0.0, 0.0, 0.0
+    haz_s, avail_s, span_s, max_err, caution_s = 0.0, 0.0, 0.0, 0.0, math.nan
     if t.size:
         dt = np.minimum(np.diff(t, append=t[-1]), max_hold_s)
         dt = np.maximum(dt, 0.0)
@@ -285,7 +287,9 @@ def score_run(alarms: Sequence, t_est: Sequence[float], h_est: Sequence[float], 
         inside = (t >= tt[0]) & (t <= tt[-1]) if tt.size else np.zeros(t.shape, bool)
         usable = np.isfinite(h)
         if overall is not None:
-            usable &= np.isin(np.asarray(overall, dtype=object), USABLE_STATES)
+            states = np.asarray(overall, dtype=object)
+            usable &= np.isin(states, USABLE_STATES)
+            caution_s = float(dt[states == "caution"].sum())
         err = np.abs(h - truth)
         bad = usable & inside & (err > hazard_m)
         haz_s = float(dt[bad].sum())
@@ -295,7 +299,8 @@ def score_run(alarms: Sequence, t_est: Sequence[float], h_est: Sequence[float], 
         max_err = float(err[sel].max()) if sel.any() else math.nan
     return RunScore(fault=fault, detected=detected, tta_s=tta, isolated=isolated, blamed=blamed,
                     wrong_exclusions=wrong, false_alarms=fa, hazardous_s=haz_s, max_usable_error_m=max_err,
-                    available_frac=avail_s / span_s if span_s > 0 else math.nan, alarmed=alarmed)
+                    available_frac=avail_s / span_s if span_s > 0 else math.nan, alarmed=alarmed,
+                    caution_frac=caution_s / span_s if span_s > 0 else math.nan)
 
 
 def misleading(t_est: Sequence[float], h_est: Sequence[float], pl_m: Sequence[float], overall: Sequence[str],

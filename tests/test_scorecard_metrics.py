@@ -225,27 +225,29 @@ def test_score_run_nominal_allowed_sources_and_input():
     assert s.false_alarms == 1 and s.wrong_exclusions == () and not s.right  # slow inputs are no alarm either
 
 
-@pytest.mark.parametrize("err_m,overall,haz_s,avail", [
-    (3.5, "nominal", 2.0, 1.0),  # 2 s offered as usable 3.5 m off: hazardous
-    (3.5, "caution", 2.0, 1.0),
-    (3.5, "unavailable", 0.0, 0.95),  # flagged: not hazardous, not available
-    (3.5, "alarm", 0.0, 0.95),
-    (2.9, "nominal", 0.0, 1.0),  # within 3 m
-    (-3.5, "nominal", 2.0, 1.0),
-    (math.nan, "nominal", 0.0, 0.95),  # no output: nothing offered
+@pytest.mark.parametrize("err_m,overall,haz_s,avail,caution", [
+    (3.5, "nominal", 2.0, 1.0, 0.0),  # 2 s offered as usable 3.5 m off: hazardous
+    (3.5, "caution", 2.0, 1.0, 0.05),  # 2 s of 40 in caution
+    (3.5, "unavailable", 0.0, 0.95, 0.0),  # flagged: not hazardous, not available
+    (3.5, "alarm", 0.0, 0.95, 0.0),
+    (2.9, "nominal", 0.0, 1.0, 0.0),  # within 3 m
+    (-3.5, "nominal", 2.0, 1.0, 0.0),
+    (math.nan, "nominal", 0.0, 0.95, 0.0),  # no output: nothing offered
 ])
-def test_score_run_hazardous_output(err_m, overall, haz_s, avail):
+def test_score_run_hazardous_output(err_m, overall, haz_s, avail, caution):
     h, ov = _out(err_m, overall)
     s = sm.score_run([], T_EST, h, ov, TRUTH_T, TRUTH_H)
     assert s.hazardous_s == pytest.approx(haz_s, abs=1e-6)
     assert s.hazardous == (haz_s > 0) and s.right == (haz_s == 0)
     assert s.available_frac == pytest.approx(avail, abs=2e-3)
+    assert s.caution_frac == pytest.approx(caution, abs=2e-3)
 
 
 def test_score_run_without_states_counts_every_output_as_offered():
     h, ov = _out(5.0, "unavailable")
     s = sm.score_run([], T_EST, h, None, TRUTH_T, TRUTH_H)
     assert s.hazardous_s == pytest.approx(2.0) and s.max_usable_error_m == pytest.approx(5.0)
+    assert math.isnan(s.caution_frac)  # a contender without states shows no caution
 
 
 def test_score_run_holds_an_epoch_at_most_max_hold_s():
