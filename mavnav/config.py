@@ -312,6 +312,9 @@ class AdaptiveFeatures(_Section):
     # that report a 1-sigma beyond monitor.alert_limit_m: their channels take the
     # baro's changes, so they cannot vouch for it at that limit (monitor/protection.py)
     own_sensor_floor: bool = True
+    # the baro's level against each aux channel on its measured scale (it only
+    # widens): a baro whose error exceeds the model's u (sigma_bb) is not a fault
+    level_scale: bool = True
 
 
 class MonitorConfig(_Section):
@@ -514,6 +517,24 @@ class MonitorConfig(_Section):
     # ramp below the freeze level had taught the baro/Doppler test to widen
     # from 1.3 to 2.6 times in 10 s (rrc_hover_cut20mm_1, 11 s to alert).
     window_scale_tau_s: float = Field(300.0, gt=0)
+    # The baro level tests' scale (features.level_scale) learns from the second
+    # difference of their statistic over this lag: longer than the statistic's
+    # correlation time (2-4 s with a 1 s baro noise, as the channel follows part
+    # of it), short against the time it learns over...
+    level_scale_lag_s: float = Field(4.0, gt=0)
+    # ...and forgets over this long: a ramp cannot teach a second difference (the
+    # kink at its onset teaches it a few per cent before the test freezes), so
+    # it may learn a baro noisier than the model within the first minute. It
+    # starts from the model: the level tests are what sees a slow baro ramp
+    # without a Doppler, and a start at the noisiest real baro's ratio (2) took
+    # simulated 0.5 m/s baro ramps from 5.8 to 7.6-7.9 s (past 3 m of error).
+    level_scale_tau_s: float = Field(20.0, gt=0)
+    # The baro/INS test's scale (its statistic a second difference too) starts
+    # from this variance ratio against the model until the flight shows its own
+    # baro: the noisiest real baro here reads 2.05 on it (aut_quad_v6xrt.ulg;
+    # 0.44-2.05 over the real flights). It sees steps, not ramps: 5 m baro steps
+    # on the 5 Hz PX4 baros are alerted in 0.55-0.8 s instead of 0.25-0.54 s.
+    ins_scale_prior_m2: float = Field(2.0, ge=1)
     residual_scale_min: float = Field(0.5, gt=0, le=1)
     residual_scale_max: float = Field(5.0, ge=1)
     # the largest lag-one correlation the aux innovation scale believes (its

@@ -60,7 +60,7 @@ from .kink import KinkSeries, MeanSquare, isolate, kink_fit, onsets
 from .levels import chi2_gate, normal_k
 from .protection import protection_level
 from .rawcheck import RawAuxCheck
-from .scale import ResidualScale
+from .scale import LagSeries, ResidualScale
 from .table import Judgement, judge
 from .tracker import SourceTracker
 from .verdict import SENSOR_SOURCES, Verdict, live_hypotheses
@@ -72,6 +72,8 @@ CHANNEL_OF = {GNSS_S: GNSS, RANGEFINDER_S: RNG, BARO_INS_S: BARO}
 REFUSAL_KINDS = ("out_of_range", "invalid_status", "stuck", "impossible")
 _LEVEL_IMPLICATES = {name: frozenset((BARO_S, name)) for _, name in AUX}
 _LEVEL_TEST = {name: f"baro level against {LABEL[name]}" for _, name in AUX}
+_LEVEL_SCALE = {name: f"level_{name}" for _, name in AUX}
+_INV_SQRT6 = 1.0 / math.sqrt(6.0)
 _KINK_KEYS = {name: (f"{name}-ins", f"{name}-baro") for _, name in AUX}
 _DISPLAY_TEST = {GNSS_S: "gnss innovation", RANGEFINDER_S: "rangefinder innovation", BARO_INS_S: "baro/INS"}
 _ONLY = {name: frozenset((name,)) for _, name in AUX}
@@ -187,6 +189,10 @@ class HypothesisLogic:
         self.r_avg_m = {GNSS_S: 0.0, RANGEFINDER_S: 0.0}
         self.last_sd_m = {GNSS_S: math.inf, RANGEFINDER_S: math.inf}
         self.level_since: dict[int, Optional[int]] = {GNSS: None, RNG: None}
+        # the level statistics (r / sigma) while the test is clean, for the second
+        # difference over level_scale_lag_s the scale learns from
+        self.level_snaps: dict[int, LagSeries] = {GNSS: LagSeries(m.level_scale_lag_s),
+                                                  RNG: LagSeries(m.level_scale_lag_s)}
         self.sudden: dict[str, tuple] = {}  # name -> (t_us, baro clean then, jump m)
         self.judgement = Judgement("clear", frozenset(), frozenset(), "start")
         # measured scale of each sequential test's residuals; the INS check only
@@ -194,7 +200,7 @@ class HypothesisLogic:
         sc = (m.residual_scale_tau_s, m.residual_scale_min, m.residual_scale_max)
         aux_sc = (*sc, m.residual_scale_max_phi)
         self.scale = {GNSS_S: ResidualScale(*aux_sc), RANGEFINDER_S: ResidualScale(*aux_sc),
-                      INS_S: ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0),
+                      INS_S: ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0, prior_m2=m.ins_scale_prior_m2),
                       BARO_S: ResidualScale(sc[0], 1.0, sc[2], max_phi=0.0)}
         self.jump: Optional[list] = None  # open baro jump: [t0, size_m, sd0, offset_m, n_after, before]
         self.before_jump: deque = deque(maxlen=64)  # clean baro samples: (t, b, ins pos, ins vel, V)
@@ -236,6 +242,11 @@ class HypothesisLogic:
         # this epoch's Doppler sample (taken after the epoch's INS increment)
         self.ins_doppler = InsDopplerCheck(m.doppler_window_s, m.doppler_max_gap_s)
         self.scale["ins_doppler"] = ResidualScale(m.window_scale_tau_s, 1.0, sc[2], max_phi=0.0)
+        # the baro's level against each aux channel: its measured scale (it only
+        # widens, and learns from a second difference) holds a baro whose noise
+        # exceeds the model's u
+        for _, name in AUX:
+            self.scale[_LEVEL_SCALE[name]] = ResidualScale(m.level_scale_tau_s, 1.0, sc[2], max_phi=0.0)
         self.insdop_ex = Exceedance()
         self.pending_doppler: Optional[tuple] = None
         self.ins_excluded = False  # the baro+INS source is out for its INS (not only its baro)
@@ -797,16 +808,20 @@ class HypothesisLogic:
         if BARO_INS_S in self.excluded or self.last_baro_m is None or t < warm_until[BARO_INS_S]:
             return out
         bank = self.bank
+        level_scale = self.f.level_scale
         for c, name in AUX:
             if not avail[c] or t < warm_until[name] or not bank.baro_on[c]:
                 self.level_since[c] = None
+                self.level_snaps[c].clear()
                 continue
             x = bank.x[c].tolist()  # Python floats: the same sums, without numpy scalars
             P0, P2 = bank.P[c, 0].tolist(), bank.P[c, 2].tolist()
             x0, x2, p00, p02, p22 = x[0], x[2], P0[0], P0[2], P2[2]
             r = self.last_baro_m - (x0 + x2)
             var = p00 + p22 + 2.0 * p02 + bank.model.sigma_bb_m ** 2 + self.baro_white_var
-            thr = self.k_cmp * math.sqrt(var)
+            sc = self.scale[_LEVEL_SCALE[name]]
+            thr_model = self.k_cmp * math.sqrt(var)
+            thr = thr_model * sc.factor if level_scale else thr_model
             implicates = _LEVEL_IMPLICATES[name]
             test = _LEVEL_TEST[name]
             stat = abs(r)
@@ -819,8 +834,13 @@ class HypothesisLogic:
                     self.level_since[c] = t
                 level = "fail" if t - self.level_since[c] >= self.persist_us else "suspect"
                 out.append(Verdict(test, level, implicates, _NOTHING, stat, thr, txt, stat))
+                self.level_snaps[c].clear()
                 continue
             self.level_since[c] = None
+            if stat <= suspect_thr:
+                self._learn_level(c, sc, t, r / math.sqrt(var))
+            else:
+                self.level_snaps[c].clear()  # frozen while the test leans towards a fault
             if stat > suspect_thr:
                 out.append(Verdict(test, "suspect", implicates, _NOTHING, stat, thr, txt))
             else:
@@ -831,8 +851,10 @@ class HypothesisLogic:
                 # and never where the channel models the GNSS's slow error: its b_g
                 # takes up a slow baro error, and H + dH follows the baro (asked in
                 # that order, and only for a statistic below clear_frac of the threshold)
+                # (against the model's threshold: a scale the baro's noise widened
+                # makes a pass weaker evidence, not stronger)
                 clear = _NOTHING
-                if (stat < self.m.clear_frac * thr and self.rejections[name].rejected == 0
+                if (stat < self.m.clear_frac * thr_model and self.rejections[name].rejected == 0
                         and self._cusum_stat(name) < self.m.clear_frac * self._h(name)
                         and not (c == GNSS and bank.model.gnss_gm_sigma_m > 0.0)):
                     clear = _BARO_ONLY
@@ -843,6 +865,18 @@ class HypothesisLogic:
                 out.append(Verdict(test, "pass", implicates, clear, stat, thr, "",
                                    stat + self.m.clear_margin_sigma * thr / self.k_cmp))
         return out
+
+    def _learn_level(self, c: int, sc: ResidualScale, t: int, z: float) -> None:
+        """Teach the level test's scale the baro's noise, never a ramp: from the
+        second difference of its normalised statistic over level_scale_lag_s,
+        ``(z(t) - 2 z(t - L) + z(t - 2 L)) / sqrt(6)``, which a linear drift does
+        not move (the statistic itself would teach a slow baro ramp to widen the
+        test that is there to see it: a simulated 0.5 m/s ramp was alarmed 1.8-3.5 s
+        later) and which reads ``z``'s own variance when its correlation time is
+        shorter than the lag."""
+        d2 = self.level_snaps[c].push(t, z)
+        if d2 is not None:
+            sc.push(t, d2 * _INV_SQRT6)
 
     def _raw_verdict(self) -> Optional[Verdict]:
         if {GNSS_S, RANGEFINDER_S} & self.excluded:
@@ -1322,7 +1356,8 @@ class HypothesisLogic:
                 x, P = bank.x[c], bank.P[c]
                 r = self.last_baro_m - (x[0] + x[2])
                 var = P[0, 0] + P[2, 2] + 2.0 * P[0, 2] + bank.model.sigma_bb_m ** 2 + self.baro_white_var
-                ok = ok and abs(r) <= self.k_cmp * math.sqrt(var)
+                f = self.scale[_LEVEL_SCALE[name]].factor if self.f.level_scale else 1.0
+                ok = ok and abs(r) <= self.k_cmp * math.sqrt(var) * f
         if not self._consistent_for(BARO_INS_S, t, bool(ok)):
             return None
         self.excluded.discard(BARO_INS_S)

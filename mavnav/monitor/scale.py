@@ -23,6 +23,7 @@ cannot teach the test to ignore it.
 from __future__ import annotations
 
 import math
+from typing import Optional
 
 _INF = math.inf
 _exp = math.exp
@@ -81,3 +82,49 @@ class ResidualScale:
         phi = self.phi
         lrv = self.m2 * (1.0 + phi) / (1.0 - phi)
         return max(self.lo, min(self.hi, math.sqrt(max(lrv, 0.0))))
+
+
+class LagSeries:
+    """A series' second difference over a lag, ``x(t) - 2 x(t - L) + x(t - 2 L)``
+    in the form a straight line does not move whatever the sample times: the
+    latest sample's departure from the line through two lagged samples ``x1``
+    (the latest at or before ``t - L``) and ``x2`` (at or before ``t - 2 L``),
+    ``x - x1 - a (x1 - x2)`` with ``a = (t - t1) / (t1 - t2)``, scaled by
+    ``sqrt(6 / (1 + (1 + a)^2 + a^2))`` so that white noise reads as the even
+    second difference does (variance ``6 sigma^2``). Each lagged sample must be
+    within a quarter of the lag of its time (else none: a gap). Amortised O(1)
+    per sample; :meth:`clear` starts it again (a fault, a restart)."""
+
+    __slots__ = ("lag_us", "tol_us", "t", "x", "i1", "i2")
+
+    def __init__(self, lag_s: float):
+        self.lag_us = int(lag_s * 1e6)
+        self.tol_us = self.lag_us // 4
+        self.clear()
+
+    def clear(self) -> None:
+        self.t: list[int] = []
+        self.x: list[float] = []
+        self.i1 = self.i2 = 0
+
+    def push(self, t_us: int, x: float) -> Optional[float]:
+        ts, xs = self.t, self.x
+        ts.append(t_us)
+        xs.append(x)
+        lag = self.lag_us
+        i1, i2, last = self.i1, self.i2, len(ts) - 1
+        while i1 < last and ts[i1 + 1] <= t_us - lag:
+            i1 += 1
+        while i2 < i1 and ts[i2 + 1] <= t_us - 2 * lag:
+            i2 += 1
+        if i2 > 512:  # drop what no lag reaches any more
+            del ts[:i2], xs[:i2]
+            i1, i2 = i1 - i2, 0
+        self.i1, self.i2 = i1, i2
+        tol = self.tol_us
+        t1, t2 = ts[i1], ts[i2]
+        if not (0 <= t_us - lag - t1 <= tol and 0 <= t_us - 2 * lag - t2 <= tol) or t1 <= t2:
+            return None
+        a = (t_us - t1) / (t1 - t2)
+        x1 = xs[i1]
+        return (x - x1 - a * (x1 - xs[i2])) * math.sqrt(6.0 / (1.0 + (1.0 + a) ** 2 + a * a))
