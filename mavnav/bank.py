@@ -345,6 +345,23 @@ class BankStep:
     dof: np.ndarray  # (3,) int
 
 
+@njit(cache=True, fastmath=False)
+def step_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da, phi_g, q_g,
+                has_baro, baro_on, xi_new, phi_u, gamma_u2,
+                aux_on, aux_z, aux_var, aux_age,
+                inn, sdiag, s12_out, nis_out, dof_out, K, Fy, Hr, rb,
+                track_cross, Pc, pairs):  # pragma: no cover - compiled
+    """:func:`bank_kernel`, then with ``track_cross`` :func:`cross_kernel`,
+    in one compiled call: the same two kernels, one dispatch of their
+    arguments per epoch instead of two (``tests/test_bank.py``)."""
+    bank_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da, phi_g, q_g,
+                has_baro, baro_on, xi_new, phi_u, gamma_u2,
+                aux_on, aux_z, aux_var, aux_age,
+                inn, sdiag, s12_out, nis_out, dof_out, K, Fy, Hr, rb)
+    if track_cross:
+        cross_kernel(Pc, pairs, T, g0, g1, q_dh, q_da, phi_g, q_g, gamma_u2, dof_out, K, Fy, Hr, rb)
+
+
 class ChannelBank:
     """The three channel filters and their shared epoch bookkeeping."""
 
@@ -533,14 +550,11 @@ class ChannelBank:
                 self._aux_z[c] = a.height_m
                 self._aux_var[c] = a.sigma_m * a.sigma_m
                 self._aux_age[c] = a.age_s
-        bank_kernel(self.x, self.P, self.baro_prev, T, ep.dp_m, ep.dv_mps, g0, g1, q_dh, q_da, phi_g, q_g,
+        step_kernel(self.x, self.P, self.baro_prev, T, ep.dp_m, ep.dv_mps, g0, g1, q_dh, q_da, phi_g, q_g,
                     has_baro, self.baro_on, ep.baro_m if has_baro else 0.0, phi_u, gamma_u2,
                     aux_on, self._aux_z, self._aux_var, self._aux_age,
                     self._inn, self._sdiag, self._s12, self._nis, self._dof,
-                    self._K, self._Fy, self._Hr, self._rb)
-        if self.track_cross:
-            cross_kernel(self.Pc, self._pairs, T, g0, g1, q_dh, q_da, phi_g, q_g, gamma_u2, self._dof,
-                         self._K, self._Fy, self._Hr, self._rb)
+                    self._K, self._Fy, self._Hr, self._rb, bool(self.track_cross), self.Pc, self._pairs)
         self.t_us = ep.t_us
         return BankStep(ep.t_us, self._inn.copy(), self._sdiag.copy(), self._s12.copy(),
                         self._nis.copy(), self._dof.copy())
