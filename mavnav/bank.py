@@ -345,6 +345,23 @@ class BankStep:
     dof: np.ndarray  # (3,) int
 
 
+@njit(cache=True, fastmath=False)
+def step_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da, phi_g, q_g,
+                has_baro, baro_on, xi_new, phi_u, gamma_u2,
+                aux_on, aux_z, aux_var, aux_age,
+                inn, sdiag, s12_out, nis_out, dof_out, K, Fy, Hr, rb,
+                track_cross, Pc, pairs):  # pragma: no cover - compiled
+    """:func:`bank_kernel`, then with ``track_cross`` :func:`cross_kernel`,
+    in one compiled call: the same two kernels, one dispatch of their
+    arguments per epoch instead of two (``tests/test_bank.py``)."""
+    bank_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da, phi_g, q_g,
+                has_baro, baro_on, xi_new, phi_u, gamma_u2,
+                aux_on, aux_z, aux_var, aux_age,
+                inn, sdiag, s12_out, nis_out, dof_out, K, Fy, Hr, rb)
+    if track_cross:
+        cross_kernel(Pc, pairs, T, g0, g1, q_dh, q_da, phi_g, q_g, gamma_u2, dof_out, K, Fy, Hr, rb)
+
+
 class ChannelBank:
     """The three channel filters and their shared epoch bookkeeping."""
 
@@ -370,6 +387,11 @@ class ChannelBank:
         self._Hr = np.zeros((N_CH, 2, N_STATES))
         self._rb = np.zeros((N_CH, 2), dtype=np.bool_)
         self._pairs = np.array(PAIRS, dtype=np.int64)
+        # _g's last inputs and answer (NaN: none yet; a NaN input never matches)
+        self._g_T = self._g_dv = math.nan
+        self._g_last = (math.nan, math.nan)
+        self._decay_T = math.nan
+        self._decay_last = (math.nan, math.nan, math.nan)
         # which channels use the baro (all, unless the monitor excludes it)
         self.baro_on = np.ones(N_CH, dtype=np.bool_)
         # cross-covariances cov(e_a, e_b) for the pairs in PAIRS
@@ -474,7 +496,7 @@ class ChannelBank:
         m = self.model
         T = ep.dt_s
         g0, _ = self._g(T, ep.dv_var_m2ps2)
-        phi_u = math.exp(-m.gamma_bb_per_s * T)
+        phi_u = self._decay(T)[0]
         a = 1.0 - phi_u
         f = np.array([a, T, a, -0.5 * T * T, 0.0])
         y = ep.baro_m - phi_u * prev - ep.dp_m
@@ -486,7 +508,28 @@ class ChannelBank:
 
     def _g(self, T: float, dv_var_m2ps2: float = 0.0) -> tuple[float, float]:
         """``Gamma``'s two non-zero entries; ``dv_var`` (the measured error of
-        the integrated IMU) adds to the acceleration noise: ``q^2 += dv_var / T^2``."""
+        the integrated IMU) adds to the acceleration noise: ``q^2 += dv_var / T^2``.
+        The last answer is kept: an epoch asks it two or three times (the baro
+        and aux predictions, then the step) with the same inputs."""
+        if T == self._g_T and dv_var_m2ps2 == self._g_dv:
+            return self._g_last
+        self._g_last = out = self._g_fresh(T, dv_var_m2ps2)
+        self._g_T, self._g_dv = T, dv_var_m2ps2
+        return out
+
+    def _decay(self, T: float) -> tuple[float, float, float]:
+        """``(phi_u, phi_g, var(w_b))`` over ``T``: the baro's Gauss-Markov decay
+        ``exp(-gamma_bb T)`` and :func:`gnss_gauss_markov`; the last answer kept,
+        as :meth:`_g`'s."""
+        if T == self._decay_T:
+            return self._decay_last
+        phi_g, q_g = gnss_gauss_markov(T, self.model)
+        self._decay_last = out = (math.exp(-self.model.gamma_bb_per_s * T), phi_g, q_g)
+        self._decay_T = T
+        return out
+
+    def _g_fresh(self, T: float, dv_var_m2ps2: float = 0.0) -> tuple[float, float]:
+        """:meth:`_g` computed."""
         m = self.model
         if self._printed:
             q = m.sigma_a_mps2 * math.sqrt(2.0 * T / m.alpha_a_per_s)
@@ -501,7 +544,7 @@ class ChannelBank:
         at epoch ``ep``, before it enters (for the chi-square gate)."""
         T = ep.dt_s
         g0, g1 = self._g(T, ep.dv_var_m2ps2)
-        phi_g, q_g = gnss_gauss_markov(T, self.model)
+        _, phi_g, q_g = self._decay(T)
         age = aux.age_s
         gb = AUX_GB_ROW[c]
         f = np.array([1.0, T - age, 0.0, -0.5 * T * T + age * T, gb * phi_g])
@@ -519,9 +562,8 @@ class ChannelBank:
         q_dh = m.baro_bias_rw_m_per_sqrt_s**2 * T
         q_da = m.acc_bias_rw_mps2_per_sqrt_s**2 * T
         has_baro = ep.baro_m is not None
-        phi_u = math.exp(-m.gamma_bb_per_s * T)
+        phi_u, phi_g, q_g = self._decay(T)
         gamma_u2 = m.sigma_bb_m**2 * (1.0 - phi_u * phi_u) + (1.0 + phi_u * phi_u) * ep.baro_white_var_m2
-        phi_g, q_g = gnss_gauss_markov(T, m)
         if has_baro and ep.baro_restart:
             self.baro_prev[:] = math.nan
         aux_on = self._aux_on
@@ -533,14 +575,11 @@ class ChannelBank:
                 self._aux_z[c] = a.height_m
                 self._aux_var[c] = a.sigma_m * a.sigma_m
                 self._aux_age[c] = a.age_s
-        bank_kernel(self.x, self.P, self.baro_prev, T, ep.dp_m, ep.dv_mps, g0, g1, q_dh, q_da, phi_g, q_g,
+        step_kernel(self.x, self.P, self.baro_prev, T, ep.dp_m, ep.dv_mps, g0, g1, q_dh, q_da, phi_g, q_g,
                     has_baro, self.baro_on, ep.baro_m if has_baro else 0.0, phi_u, gamma_u2,
                     aux_on, self._aux_z, self._aux_var, self._aux_age,
                     self._inn, self._sdiag, self._s12, self._nis, self._dof,
-                    self._K, self._Fy, self._Hr, self._rb)
-        if self.track_cross:
-            cross_kernel(self.Pc, self._pairs, T, g0, g1, q_dh, q_da, phi_g, q_g, gamma_u2, self._dof,
-                         self._K, self._Fy, self._Hr, self._rb)
+                    self._K, self._Fy, self._Hr, self._rb, bool(self.track_cross), self.Pc, self._pairs)
         self.t_us = ep.t_us
         return BankStep(ep.t_us, self._inn.copy(), self._sdiag.copy(), self._s12.copy(),
                         self._nis.copy(), self._dof.copy())

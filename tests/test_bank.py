@@ -292,3 +292,89 @@ def test_cross_kernel_equals_reference_over_a_run(seed, gm_sigma_m):
         _assert_cross_equal(bank.Pc, want)
         shared_baro += int(bank._rb[:, 0].sum() >= 2)
     assert shared_baro > 500  # most steps exercised the shared baro term
+
+
+class _TwoCalls(ChannelBank):
+    """The step as it was before step_kernel: bank_kernel, then cross_kernel, two calls."""
+
+    def step(self, ep):
+        import mavnav.bank as b
+
+        saved = b.step_kernel
+
+        def two(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da, phi_g, q_g, has_baro, baro_on, xi_new, phi_u,
+                gamma_u2, aux_on, aux_z, aux_var, aux_age, inn, sdiag, s12, nis, dof, K, Fy, Hr, rb,
+                track_cross, Pc, pairs):
+            b.bank_kernel(x, P, baro_prev, T, dp, dv, g0, g1, q_dh, q_da, phi_g, q_g, has_baro, baro_on, xi_new,
+                          phi_u, gamma_u2, aux_on, aux_z, aux_var, aux_age, inn, sdiag, s12, nis, dof, K, Fy, Hr, rb)
+            if track_cross:
+                cross_kernel(Pc, pairs, T, g0, g1, q_dh, q_da, phi_g, q_g, gamma_u2, dof, K, Fy, Hr, rb)
+
+        b.step_kernel = two
+        try:
+            return super().step(ep)
+        finally:
+            b.step_kernel = saved
+
+
+@pytest.mark.parametrize("seed", [5, 17])
+@pytest.mark.parametrize("track_cross", [True, False])
+def test_step_kernel_equals_the_two_kernels(seed, track_cross):
+    """step_kernel (one compiled call) leaves the same floats as bank_kernel
+    then cross_kernel called one after the other, over a long irregular run
+    (baro switched off and on per channel, feedback, restarts)."""
+    model = Model.from_config(cfg_gm(3.0))
+    one, two = ChannelBank(model, track_cross), _TwoCalls(model, track_cross)
+    for bank in (one, two):
+        bank.start(0, 0.5)
+    rng = np.random.default_rng(seed)
+    for k, ep in enumerate(random_epochs(seed, 800, measured=True)):
+        if k % 50 == 0:
+            on = rng.random(len(CHANNELS)) < 0.8
+            one.baro_on[:] = on
+            two.baro_on[:] = on
+        a, b = one.step(ep), two.step(ep)
+        for u, v in zip(dataclasses.astuple(a), dataclasses.astuple(b)):
+            assert np.array_equal(u, v, equal_nan=True)
+        for name in ("x", "P", "Pc", "baro_prev"):
+            assert np.array_equal(getattr(one, name), getattr(two, name), equal_nan=True), name
+    assert not np.array_equal(one.Pc, np.zeros_like(one.Pc)) or not track_cross
+
+
+class _Fresh(ChannelBank):
+    """A bank that keeps no answer: _g and the decays computed at every call."""
+
+    def _g(self, T, dv_var_m2ps2=0.0):
+        return self._g_fresh(T, dv_var_m2ps2)
+
+    def _decay(self, T):
+        phi_g, q_g = gnss_gauss_markov(T, self.model)
+        return math.exp(-self.model.gamma_bb_per_s * T), phi_g, q_g
+
+
+@pytest.mark.parametrize("form", ["consistent", "printed"])
+def test_kept_noise_terms_are_the_fresh_ones(form):
+    """The bank's kept _g and decay answers (asked by the baro and aux
+    predictions and the step of one epoch) give the same predictions and
+    states as computing them at every call, over epochs whose interval and
+    measured IMU noise repeat and change."""
+    cfg = cfg_gm(3.0)
+    model = dataclasses.replace(Model.from_config(cfg), accel_noise_form=form)
+    kept, fresh = ChannelBank(model), _Fresh(model)
+    for bank in (kept, fresh):
+        bank.start(0, 0.5)
+    rng = np.random.default_rng(23)
+    for k, ep in enumerate(random_epochs(23, 900, measured=True)):
+        if k % 3:  # the same interval and IMU noise as the epoch before: the kept answers serve
+            ep = dataclasses.replace(ep, dt_s=0.05, dv_var_m2ps2=0.01 if k % 2 else 0.0)
+        for c in range(len(CHANNELS)):
+            assert repr(kept.predicted_baro(c, ep)) == repr(fresh.predicted_baro(c, ep))
+            for aux in (ep.gnss, ep.rng):
+                if aux is not None:
+                    assert repr(kept.predicted_aux(c, ep, aux)) == repr(fresh.predicted_aux(c, ep, aux))
+        a, b = kept.step(ep), fresh.step(ep)
+        for u, v in zip(dataclasses.astuple(a), dataclasses.astuple(b)):
+            assert np.array_equal(u, v, equal_nan=True)
+        assert np.array_equal(kept.P, fresh.P) and np.array_equal(kept.x, fresh.x)
+        if k % 97 == 0:
+            kept.baro_on[:] = fresh.baro_on[:] = rng.random(len(CHANNELS)) < 0.7

@@ -627,3 +627,64 @@ def test_bulk_reader_follows_pyulog_recovery(tmp_path, case, whole, corrupt, row
     bulk_to, was_corrupt = _bulk_against_loop(p)
     assert (bulk_to == p.stat().st_size, was_corrupt) == (whole, corrupt)
     assert len(read_ulog(p).baro.t_us) == rows
+
+
+@pytest.mark.realdata
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["frs_gps_interference.ulg", "frs_motor_failure_hexa.ulg"])
+def test_bulk_reader_equals_pyulog_loop_with_damaged_definitions(tmp_path, name):
+    """Cuts, flips and garbage inside the header and definitions (where the
+    bulk reader lets pyulog read through the file's own read and knows the
+    guard's record only afterwards): the same pyulog state, guard record and
+    record as pyulog's loop through the guarded file."""
+    src = log_path(name)
+    raw = src.read_bytes()
+    start = _data_start(src)
+    rng = random.Random(1500)
+    fell_back = 0
+    for k in range(24):
+        b = bytearray(raw)
+        kind = ("cut", "flip", "garbage", "cut_header")[k % 4]
+        i = rng.randrange(ulog_mod.HEADER_LEN, start)
+        if kind == "cut":
+            b = b[:i]
+        elif kind == "cut_header":
+            b = b[:rng.randrange(ulog_mod.HEADER_LEN, ulog_mod.HEADER_LEN + 40)]
+        elif kind == "flip":
+            for _ in range(rng.choice([1, 3])):
+                j = rng.randrange(ulog_mod.HEADER_LEN, start)
+                b[j] ^= 1 << rng.randrange(8)
+        else:
+            b[i:i] = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 40)))
+        p = tmp_path / f"{kind}_{k}.ulg"
+        p.write_bytes(bytes(b))
+        fh = ulog_mod._DefsFile(str(p), len(b))
+        try:
+            import pyulog.core as core
+
+            core.ULog(fh, list(ulog_mod.TOPICS), True, True)
+            fell_back += not fh.whole()
+        except Exception:
+            fell_back += 1
+        _bulk_against_loop(p)
+    assert fell_back >= 6, "the guarded re-read of the definitions was not exercised"
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize("name", ["frs_motor_failure_hexa.ulg", "aut_quad_v6xrt.ulg"])
+def test_definitions_read_whole_give_the_guarded_state(name):
+    """On a healthy log the definitions are read through the file's own read
+    (one seek back, before the end) and leave pyulog and the guard as the
+    guarded file does."""
+    import pyulog.core as core
+
+    p = log_path(name)
+    size = p.stat().st_size
+    fast, guarded = ulog_mod._DefsFile(str(p), size), ulog_mod._open(str(p), size)
+    a = core.ULog(fast, list(ulog_mod.TOPICS), True, True)
+    b = core.ULog(guarded, list(ulog_mod.TOPICS), True, True)
+    assert fast.whole()
+    assert (a._msg_info_dict, a._initial_parameters, sorted(a._message_formats)) == \
+        (b._msg_info_dict, b._initial_parameters, sorted(b._message_formats))
+    assert (fast.cut, fast.stopped_at, fast.gave_up_at, fast._last_back, fast._regressions) == \
+        (guarded.cut, guarded.stopped_at, guarded.gave_up_at, guarded._last_back, guarded._regressions)

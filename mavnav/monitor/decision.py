@@ -35,18 +35,23 @@ def pair_reports(bank: ChannelBank, available, thresholds) -> tuple[PairReport, 
         diff = h[a] - h[b]
         thr = float(thresholds[p])
         valid = bool(available[a] and available[b])
-        out.append(PairReport(name=PAIR_NAMES[p], diff_m=diff, threshold_m=thr,
-                              exceeded=valid and abs(diff) > thr, valid=valid))
+        # name, diff_m, threshold_m, exceeded, valid (positionally: once per pair per epoch)
+        out.append(PairReport(PAIR_NAMES[p], diff, thr, valid and abs(diff) > thr, valid))
     return tuple(out)
+
+
+_MIN_DIFF_VAR = 1e-12  # m^2: the pair difference's variance floor
 
 
 def _diff_sigma_list(bank: ChannelBank, floor_var) -> list[float]:
     ph = bank.P[:, 0, 0].tolist()  # Python floats: the same arithmetic without numpy scalars
     pc = bank.Pc[:, 0, 0].tolist()
+    # max(ph[c], floor_var[c]) once per channel (max(a, b) is a unless b > a: so NaN stays as max keeps it)
+    m = [f if f > v else v for v, f in zip(ph, floor_var)]
     out = []
     for p, (a, b) in enumerate(PAIRS):
-        v = max(ph[a], floor_var[a]) + max(ph[b], floor_var[b]) - 2.0 * pc[p]
-        out.append(math.sqrt(max(v, 1e-12)))
+        v = m[a] + m[b] - 2.0 * pc[p]
+        out.append(math.sqrt(_MIN_DIFF_VAR if _MIN_DIFF_VAR > v else v))  # max(v, 1e-12)
     return out
 
 

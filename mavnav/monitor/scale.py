@@ -27,6 +27,7 @@ from typing import Optional
 
 _INF = math.inf
 _exp = math.exp
+_sqrt = math.sqrt
 
 
 class ResidualScale:
@@ -65,23 +66,39 @@ class ResidualScale:
         """The stream paused: the next residual is not a neighbour of the last."""
         self.prev = math.nan
 
+    # The clips below are max(lo, min(hi, v)) spelled as conditionals (several
+    # calls an epoch): min(a, b) is a unless b < a, max(a, b) is a unless b > a,
+    # so NaN and signed zeros come out as max and min give them
+    # (tests/test_monitor_scale.py).
+
     @property
     def phi(self) -> float:
-        if self.m2 <= 0:
+        m2 = self.m2
+        if m2 <= 0:
             return 0.0
-        return max(0.0, min(self.max_phi, self.c1 / self.m2))
+        r = self.c1 / m2
+        mp = self.max_phi
+        r = r if r < mp else mp  # min(max_phi, r)
+        return r if r > 0.0 else 0.0  # max(0.0, r)
 
     @property
     def sd(self) -> float:
         """The residuals' own standard deviation (for per-sample gates, where
         correlation does not matter), clipped like :attr:`factor`."""
-        return max(self.lo, min(self.hi, math.sqrt(max(self.m2, 0.0))))
+        m2 = self.m2
+        v = _sqrt(0.0 if 0.0 > m2 else m2)  # max(m2, 0.0)
+        hi, lo = self.hi, self.lo
+        v = v if v < hi else hi
+        return v if v > lo else lo
 
     @property
     def factor(self) -> float:
         phi = self.phi
         lrv = self.m2 * (1.0 + phi) / (1.0 - phi)
-        return max(self.lo, min(self.hi, math.sqrt(max(lrv, 0.0))))
+        v = _sqrt(0.0 if 0.0 > lrv else lrv)  # max(lrv, 0.0)
+        hi, lo = self.hi, self.lo
+        v = v if v < hi else hi
+        return v if v > lo else lo
 
 
 class LagSeries:

@@ -203,6 +203,34 @@ class _GuardedFile(_Guard, io.BufferedReader):
         self._guard_init(size, limit)
 
 
+class _DefsFile(_GuardedFile):
+    """:class:`_GuardedFile` for pyulog's header and definitions (thousands of
+    small reads) with the file's own ``read``: the same bytes, without the
+    guard's watch on each read. Its seeks are the guard's, counted. A read can
+    come up short only at the end of the file, so the guard's record (no cut,
+    no loop) is known afterwards where pyulog made one seek, from before the
+    end: the step back over the first data message, where the definitions end
+    (:meth:`whole`). Otherwise the guarded file reads the definitions again."""
+
+    read = _buffered_read
+
+    def _guard_init(self, size: int, limit: Optional[int]) -> None:
+        super()._guard_init(size, limit)
+        self.seeks = 0
+        self.first_seek_from = -1
+
+    def seek(self, offset, whence=0):
+        if not self.seeks:
+            self.first_seek_from = self.tell()
+        self.seeks += 1
+        return super().seek(offset, whence)
+
+    def whole(self) -> bool:
+        """Every read was whole and no seek was a loop: the guard would have
+        recorded nothing but the one step back."""
+        return self.seeks == 1 and 0 <= self.first_seek_from < self.size and self.limit is None
+
+
 # --------------------------------------------------------------------- parsing
 
 def _probe(path: str) -> int:
@@ -386,11 +414,21 @@ def _load_bulk(path: str, size: int) -> Optional[_Parsed]:
 
     _install_print_capture(core)
     printed: List[str] = []
-    fh = _open(path, size)
+    try:
+        fh: _GuardedFile = _DefsFile(path, size)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
     _capture.lines = printed
     try:
         u = core.ULog(fh, message_name_filter_list=list(TOPICS), disable_str_exceptions=True,
                       parse_header_only=True)
+        if not fh.whole():  # a read may have come up short, or pyulog recovered: the guarded read
+            del printed[:]
+            if not fh.closed:
+                fh.close()
+            fh = _open(path, size)
+            u = core.ULog(fh, message_name_filter_list=list(TOPICS), disable_str_exceptions=True,
+                          parse_header_only=True)
         if (fh.cut is not None or fh.gave_up_at is not None or u.has_data_appended
                 or not hasattr(u, "_subscriptions")):
             return None  # the header or definitions are damaged, or appended data: pyulog's own loop
