@@ -292,6 +292,23 @@ def test_integrity_job_scores_every_contender():
         assert not s["fault"] and 0.0 <= s["available_frac"] <= 1.0
 
 
+@pytest.mark.parametrize("model", ["truth", "shipped"])
+def test_integrity_job_runs_the_monitor_on_the_sensor_model_asked(model, monkeypatch):
+    from bench import integrity
+    from mavnav.config import SensorsConfig
+
+    seen = []
+    real = integrity.run_contenders
+    monkeypatch.setattr(integrity, "run_contenders", lambda samples, sensors, *a: seen.append(sensors)
+                        or real(samples, sensors, *a))
+    r = integrity.job({"family": "slow_telemetry", "seed": 3, "contenders": ["adaptive"], "baseline_fail_s": 5.0,
+                       "sensor_model": model})
+    shipped = SensorsConfig()
+    assert len(seen) == 1 and 0.0 <= r.scores["adaptive"]["caution_frac"] <= 1.0
+    # the scenario's baro (u 0.5 m) told to the monitor, or mavnav's shipped 0.2 m
+    assert (seen[0].baro.sigma_bb_m == shipped.baro.sigma_bb_m) == (model == "shipped")
+
+
 def test_misleading_counts_error_beyond_the_protection_level_hand_checked():
     t = [0.0, 0.1, 0.2, 0.3, 0.4]
     truth_t, truth_h = [0.0, 1.0], [10.0, 10.0]
