@@ -117,12 +117,14 @@ class LagSeries:
     def __init__(self, lag_s: float):
         self.lag_us = int(lag_s * 1e6)
         self.tol_us = self.lag_us // 4
-        self.clear()
-
-    def clear(self) -> None:
         self.t: list[int] = []
         self.x: list[float] = []
         self.i1 = self.i2 = 0
+
+    def clear(self) -> None:
+        if self.t:  # (asked every epoch a channel is out: nothing to drop then)
+            self.t, self.x = [], []
+            self.i1 = self.i2 = 0
 
     def push(self, t_us: int, x: float) -> Optional[float]:
         ts, xs = self.t, self.x
