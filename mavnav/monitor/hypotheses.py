@@ -808,7 +808,6 @@ class HypothesisLogic:
         if BARO_INS_S in self.excluded or self.last_baro_m is None or t < warm_until[BARO_INS_S]:
             return out
         bank = self.bank
-        level_scale = self.f.level_scale
         for c, name in AUX:
             if not avail[c] or t < warm_until[name] or not bank.baro_on[c]:
                 self.level_since[c] = None
@@ -821,7 +820,7 @@ class HypothesisLogic:
             var = p00 + p22 + 2.0 * p02 + bank.model.sigma_bb_m ** 2 + self.baro_white_var
             sc = self.scale[_LEVEL_SCALE[name]]
             thr_model = self.k_cmp * math.sqrt(var)
-            thr = thr_model * sc.factor if level_scale else thr_model
+            thr = thr_model * self._level_factor(name)
             implicates = _LEVEL_IMPLICATES[name]
             test = _LEVEL_TEST[name]
             stat = abs(r)
@@ -865,6 +864,12 @@ class HypothesisLogic:
                 out.append(Verdict(test, "pass", implicates, clear, stat, thr, "",
                                    stat + self.m.clear_margin_sigma * thr / self.k_cmp))
         return out
+
+    def _level_factor(self, name: str) -> float:
+        """The level test's measured scale against ``name``'s channel (1 with
+        ``features.level_scale`` off): its threshold's factor, in the test and in
+        the baro's readmission alike."""
+        return self.scale[_LEVEL_SCALE[name]].factor if self.f.level_scale else 1.0
 
     def _learn_level(self, c: int, sc: ResidualScale, t: int, z: float) -> None:
         """Teach the level test's scale the baro's noise, never a ramp: from the
@@ -1356,8 +1361,7 @@ class HypothesisLogic:
                 x, P = bank.x[c], bank.P[c]
                 r = self.last_baro_m - (x[0] + x[2])
                 var = P[0, 0] + P[2, 2] + 2.0 * P[0, 2] + bank.model.sigma_bb_m ** 2 + self.baro_white_var
-                f = self.scale[_LEVEL_SCALE[name]].factor if self.f.level_scale else 1.0
-                ok = ok and abs(r) <= self.k_cmp * math.sqrt(var) * f
+                ok = ok and abs(r) <= self.k_cmp * math.sqrt(var) * self._level_factor(name)
         if not self._consistent_for(BARO_INS_S, t, bool(ok)):
             return None
         self.excluded.discard(BARO_INS_S)
