@@ -315,6 +315,15 @@ class AdaptiveFeatures(_Section):
     # the baro's level against each aux channel on its measured scale (it only
     # widens): a baro whose error exceeds the model's u (sigma_bb) is not a fault
     level_scale: bool = True
+    # the baro's slow error u measured at run time from a short baro/INS second
+    # difference (monitor/baronoise.py): the level tests (and the baro's
+    # readmission against them) take it in place of the model's sigma_bb where
+    # the flight's baro is significantly noisier
+    baro_u_measured: bool = True
+    # the sudden-jump rule against the measured scatter of an aux stream's
+    # sample-to-sample innovation changes, not the innovations' own sigma
+    # (consecutive innovations share the channel's error: their change is small)
+    sudden_jump_measured: bool = True
 
 
 class MonitorConfig(_Section):
@@ -529,12 +538,45 @@ class MonitorConfig(_Section):
     # without a Doppler, and a start at the noisiest real baro's ratio (2) took
     # simulated 0.5 m/s baro ramps from 5.8 to 7.6-7.9 s (past 3 m of error).
     level_scale_tau_s: float = Field(20.0, gt=0)
+    # It may narrow a measured u (features.baro_u_measured) this far: an aux
+    # channel follows part of the baro's slow error into its dH, so the level
+    # moves less than u (a simulated 0.5 m baro read 0.53 m, and the level's own
+    # scale 0.35-0.42 m). Its twenty seconds hold five independent readings at
+    # the 4 s lag: free to narrow to the model, it did (a baro ramp then alarmed
+    # as early as before, but the hover's cautions rose from 0.6 to 5.2 %).
+    level_scale_min: float = Field(0.75, gt=0, le=1)
     # The baro/INS test's scale (its statistic a second difference too) starts
     # from this variance ratio against the model until the flight shows its own
     # baro: the noisiest real baro here reads 2.05 on it (aut_quad_v6xrt.ulg;
     # 0.44-2.05 over the real flights). It sees steps, not ramps: 5 m baro steps
     # on the 5 Hz PX4 baros are alerted in 0.55-0.8 s instead of 0.25-0.54 s.
     ins_scale_prior_m2: float = Field(2.0, ge=1)
+    # The baro's u measured at run time (features.baro_u_measured,
+    # monitor/baronoise.py): a baro/INS second difference over two windows of
+    # about baro_u_window_s / 2..1 (at a 1 s lag the simulator's 0.5 m, 1 s baro
+    # reads ten times the model's variance: seen in seconds, where the 4 s test's
+    # scale needs a minute), the median of |e| / sigma over the last
+    # baro_u_memory_s (at least baro_u_min_samples, readings past
+    # baro_u_outlier_sigma left out: a step's onset); a variance ratio within
+    # baro_u_significance_sigma of its own scatter above 1 is the model's.
+    # (Every median scale is recomputed at most once per median_scale_update_s.)
+    baro_u_window_s: float = Field(1.0, gt=0)
+    baro_u_memory_s: float = Field(60.0, gt=0)
+    baro_u_min_samples: int = Field(50, ge=5)
+    baro_u_outlier_sigma: float = Field(6.0, gt=0)
+    baro_u_significance_sigma: float = Field(1.0, ge=0)
+    median_scale_update_s: float = Field(1.0, gt=0)
+    # The sudden-jump rule (features.sudden_jump_measured): an aux innovation
+    # jumping from one sample to the next by sqrt(gate) times the measured
+    # scatter of those jumps (the median over sudden_jump_memory_s, at least
+    # sudden_jump_min_samples) while the baro row is clean: neither the baro nor
+    # the INS can make it. The measured scatter sharpens the rule at most
+    # sudden_jump_sharpen_max times against the innovations' own sigmas: a
+    # stream that repeats its values (the SITL receivers' 5 Hz altitude read at
+    # 10 Hz) has a median jump near 0, and each update would read as a jump.
+    sudden_jump_memory_s: float = Field(30.0, gt=0)
+    sudden_jump_min_samples: int = Field(20, ge=5)
+    sudden_jump_sharpen_max: float = Field(4.0, ge=1)
     residual_scale_min: float = Field(0.5, gt=0, le=1)
     residual_scale_max: float = Field(5.0, ge=1)
     # the largest lag-one correlation the aux innovation scale believes (its

@@ -55,12 +55,13 @@ from .decision import Decision, pair_reports_scaled
 from .doppler import MIN_SPAN_FRAC, DopplerCheck, Exceedance, InsDopplerCheck
 from .drift import DriftCheck
 from .fusion import fuse_heights
+from .baronoise import BaroNoiseMeter
 from .inscheck import InsBaroCheck
 from .kink import KinkSeries, MeanSquare, isolate, kink_fit, onsets
 from .levels import chi2_gate, normal_k
 from .protection import protection_level
 from .rawcheck import RawAuxCheck
-from .scale import LagSeries, ResidualScale
+from .scale import LagSeries, MedianScale, ResidualScale
 from .table import Judgement, judge
 from .tracker import SourceTracker
 from .verdict import SENSOR_SOURCES, Verdict, live_hypotheses
@@ -172,6 +173,10 @@ class HypothesisLogic:
         self.sensor_var_floor = [0.0, 0.0, 0.0]
         self.bank.baro_on[:] = True
         self.ins = InsBaroCheck(m.ins_window_s)
+        model = self.bank.model
+        self.baro_u = BaroNoiseMeter(model.sigma_bb_m, model.gamma_bb_per_s, m.baro_u_window_s,
+                                     m.baro_u_memory_s, m.baro_u_min_samples, m.baro_u_outlier_sigma,
+                                     m.baro_u_significance_sigma, m.median_scale_update_s, m.residual_scale_max)
         self.ins_ex = Exceedance()  # baro/INS readings past its threshold and its suspect level
         self.raw_check = RawAuxCheck(window_s=m.raw_check_window_s, k=self.k_cmp)
         self.refused: deque = deque()  # (t_us, kind, value_m, min_m, max_m)
@@ -194,6 +199,9 @@ class HypothesisLogic:
         self.level_snaps: dict[int, LagSeries] = {GNSS: LagSeries(m.level_scale_lag_s),
                                                   RNG: LagSeries(m.level_scale_lag_s)}
         self.sudden: dict[str, tuple] = {}  # name -> (t_us, baro clean then, jump m)
+        # the measured scatter of each aux stream's sample-to-sample innovation change
+        self.jump_scale = {s: MedianScale(m.sudden_jump_memory_s, m.sudden_jump_min_samples,
+                                          m.median_scale_update_s) for s in (GNSS_S, RANGEFINDER_S)}
         self.judgement = Judgement("clear", frozenset(), frozenset(), "start")
         # measured scale of each sequential test's residuals; the INS check only
         # ever widens (its windows overlap, so only the variance ratio counts)
@@ -242,11 +250,13 @@ class HypothesisLogic:
         # this epoch's Doppler sample (taken after the epoch's INS increment)
         self.ins_doppler = InsDopplerCheck(m.doppler_window_s, m.doppler_max_gap_s)
         self.scale["ins_doppler"] = ResidualScale(m.window_scale_tau_s, 1.0, sc[2], max_phi=0.0)
-        # the baro's level against each aux channel: its measured scale (it only
-        # widens, and learns from a second difference) holds a baro whose noise
-        # exceeds the model's u
+        # the baro's level against each aux channel: its measured scale (learnt
+        # from a second difference) holds a baro whose noise exceeds the model's u,
+        # and may narrow a measured u the level itself does not show; the
+        # threshold never falls below the model's (_level_thr)
         for _, name in AUX:
-            self.scale[_LEVEL_SCALE[name]] = ResidualScale(m.level_scale_tau_s, 1.0, sc[2], max_phi=0.0)
+            self.scale[_LEVEL_SCALE[name]] = ResidualScale(m.level_scale_tau_s, m.level_scale_min, sc[2],
+                                                           max_phi=0.0)
         self.insdop_ex = Exceedance()
         self.pending_doppler: Optional[tuple] = None
         self.ins_excluded = False  # the baro+INS source is out for its INS (not only its baro)
@@ -413,8 +423,14 @@ class HypothesisLogic:
         clean: neither the baro nor the INS (whose errors are integrals) can
         make it."""
         jump = abs(r - self.last_r_m[name])
-        if jump > math.sqrt(self.gate) * math.hypot(sd, self.last_sd_m[name]):
+        js = self.jump_scale[name]
+        scale = math.hypot(sd, self.last_sd_m[name])
+        if self.f.sudden_jump_measured and js.sd is not None:
+            scale = max(js.sd, scale / self.m.sudden_jump_sharpen_max)
+        if jump > math.sqrt(self.gate) * scale:
             self.sudden[name] = (t, baro_z < self.m.clear_frac * math.sqrt(self.baro_gate), jump)
+        elif self.f.sudden_jump_measured:
+            js.push(t, jump)
 
     def _sequential(self, name: str, t: int, z: float, reject: bool) -> None:
         """The CUSUM (on the measured scale; frozen while the baro+INS source is
@@ -808,6 +824,7 @@ class HypothesisLogic:
         if BARO_INS_S in self.excluded or self.last_baro_m is None or t < warm_until[BARO_INS_S]:
             return out
         bank = self.bank
+        u_var = self.baro_u.u_var_m2
         for c, name in AUX:
             if not avail[c] or t < warm_until[name] or not bank.baro_on[c]:
                 self.level_since[c] = None
@@ -817,10 +834,10 @@ class HypothesisLogic:
             P0, P2 = bank.P[c, 0].tolist(), bank.P[c, 2].tolist()
             x0, x2, p00, p02, p22 = x[0], x[2], P0[0], P0[2], P2[2]
             r = self.last_baro_m - (x0 + x2)
-            var = p00 + p22 + 2.0 * p02 + bank.model.sigma_bb_m ** 2 + self.baro_white_var
+            var_rest = p00 + p22 + 2.0 * p02 + self.baro_white_var
+            var = var_rest + u_var
             sc = self.scale[_LEVEL_SCALE[name]]
-            thr_model = self.k_cmp * math.sqrt(var)
-            thr = thr_model * self._level_factor(name)
+            thr, thr_model = self._level_thr(name, var_rest)
             implicates = _LEVEL_IMPLICATES[name]
             test = _LEVEL_TEST[name]
             stat = abs(r)
@@ -865,11 +882,20 @@ class HypothesisLogic:
                                    stat + self.m.clear_margin_sigma * thr / self.k_cmp))
         return out
 
-    def _level_factor(self, name: str) -> float:
-        """The level test's measured scale against ``name``'s channel (1 with
-        ``features.level_scale`` off): its threshold's factor, in the test and in
-        the baro's readmission alike."""
-        return self.scale[_LEVEL_SCALE[name]].factor if self.f.level_scale else 1.0
+    def _level_thr(self, name: str, var_rest: float) -> tuple[float, float]:
+        """The level test's threshold against ``name``'s channel and the
+        model's, from the variance of the difference less the baro's ``u``
+        (in the test and in the baro's readmission alike): the baro's ``u``
+        as measured (:mod:`.baronoise`) times the level's measured scale (1
+        with ``features.level_scale`` off), never below the model's. A pass
+        clears the baro against the model's: a baro measured noisier makes a
+        pass weaker evidence, not stronger."""
+        k = self.k_cmp
+        thr_model = k * math.sqrt(var_rest + self.bank.model.sigma_bb_m ** 2)
+        thr = k * math.sqrt(var_rest + self.baro_u.u_var_m2)
+        if self.f.level_scale:
+            thr *= self.scale[_LEVEL_SCALE[name]].factor
+        return (thr if thr > thr_model else thr_model), thr_model
 
     def _learn_level(self, c: int, sc: ResidualScale, t: int, z: float) -> None:
         """Teach the level test's scale the baro's noise, never a ramp: from the
@@ -1110,6 +1136,11 @@ class HypothesisLogic:
             w.expire(t)
         self.raw_check.push(t, self.pending_raw[GNSS], self.pending_raw[RNG])
         self.ins.push(t, ep.dt_s, ep.dp_m, ep.dv_mps, ep.baro_m, self.bank.x[BARO], self.bank.P[BARO])
+        if self.f.baro_u_measured:
+            self.baro_u.push(t, ep.dt_s, ep.dp_m, ep.dv_mps, ep.baro_m, self.bank.x[BARO], self.bank.P[BARO])
+            if ep.baro_m is not None:
+                self.baro_u.observe(t, self.baro_white_var, self._ins_psd(),
+                                    self.bank.model.baro_bias_rw_m_per_sqrt_s ** 2)
         if self.f.ins_doppler_check:
             self._push_ins_doppler(ep)
         if self.f.kink_isolation:
@@ -1360,8 +1391,8 @@ class HypothesisLogic:
                     continue
                 x, P = bank.x[c], bank.P[c]
                 r = self.last_baro_m - (x[0] + x[2])
-                var = P[0, 0] + P[2, 2] + 2.0 * P[0, 2] + bank.model.sigma_bb_m ** 2 + self.baro_white_var
-                ok = ok and abs(r) <= self.k_cmp * math.sqrt(var) * self._level_factor(name)
+                # (the level test's own threshold: a stricter readmission than the test is a latch)
+                ok = ok and abs(r) <= self._level_thr(name, P[0, 0] + P[2, 2] + 2.0 * P[0, 2] + self.baro_white_var)[0]
         if not self._consistent_for(BARO_INS_S, t, bool(ok)):
             return None
         self.excluded.discard(BARO_INS_S)
@@ -1414,15 +1445,20 @@ class HypothesisLogic:
         with the noise the test itself uses: the INS model's, the measured IMU
         scatter beyond it, and the measured scale."""
         model = self.bank.model
-        iv = self.rates[BARO_INS_S].interval_s
-        T = max(iv, 1e-3) if iv == iv else 0.1
-        psd = 2.0 * model.sigma_a_mps2 ** 2 / model.alpha_a_per_s + self.dv_var / T
-        res = self.ins.residual(self.baro_white_var, psd, model.baro_bias_rw_m_per_sqrt_s ** 2,
+        res = self.ins.residual(self.baro_white_var, self._ins_psd(), model.baro_bias_rw_m_per_sqrt_s ** 2,
                                 model.sigma_bb_m ** 2, model.gamma_bb_per_s)
         if res is None:
             return None
         e, sigma, D = res
         return e, sigma, self.k_cmp * sigma * self.scale[INS_S].factor, D
+
+    def _ins_psd(self) -> float:
+        """The INS's position noise PSD over the baro/INS windows: the model's
+        and the measured IMU scatter beyond it, at the baro's interval."""
+        model = self.bank.model
+        iv = self.rates[BARO_INS_S].interval_s
+        T = max(iv, 1e-3) if iv == iv else 0.1
+        return 2.0 * model.sigma_a_mps2 ** 2 / model.alpha_a_per_s + self.dv_var / T
 
     def _ins_verdict_quiet(self, t: int) -> bool:
         """Readmission: the baro agrees with the INS by the test's own noise

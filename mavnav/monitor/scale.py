@@ -23,6 +23,7 @@ cannot teach the test to ignore it.
 from __future__ import annotations
 
 import math
+from collections import deque
 from typing import Optional
 
 _INF = math.inf
@@ -147,3 +148,42 @@ class LagSeries:
         a = (t_us - t1) / (t1 - t2)
         x1 = xs[i1]
         return (x - x1 - a * (x1 - xs[i2])) * math.sqrt(6.0 / (1.0 + (1.0 + a) ** 2 + a * a))
+
+
+# |x| of a standard normal: its median
+MEDIAN_ABS_NORMAL = 0.6744897501960817
+
+
+class MedianScale:
+    """The sigma of a zero-mean series from the median of its absolute values
+    over the last ``memory_s`` (``median |x| / 0.6745``): robust to the few
+    readings a fault's onset adds, so the caller need not freeze it. None
+    until ``min_samples`` are held; recomputed at most every ``update_s``
+    (time from the samples)."""
+
+    def __init__(self, memory_s: float, min_samples: int, update_s: float):
+        self.memory_us = int(memory_s * 1e6)
+        self.min_samples = min_samples
+        self.update_us = int(update_s * 1e6)
+        self.t: deque = deque()
+        self.x: deque = deque()
+        self.next_us = -(1 << 62)
+        self.sd: Optional[float] = None
+
+    def push(self, t_us: int, x_abs: float) -> bool:
+        """One reading; True when the scale was recomputed."""
+        ts, xs = self.t, self.x
+        ts.append(t_us)
+        xs.append(x_abs)
+        limit = t_us - self.memory_us
+        while ts[0] < limit:
+            ts.popleft()
+            xs.popleft()
+        if t_us < self.next_us or len(xs) < self.min_samples:
+            return False
+        self.next_us = t_us + self.update_us
+        vals = sorted(xs)
+        n = len(vals)
+        med = vals[n // 2] if n % 2 else 0.5 * (vals[n // 2 - 1] + vals[n // 2])
+        self.sd = med / MEDIAN_ABS_NORMAL
+        return True
