@@ -191,6 +191,7 @@ class HypothesisLogic:
         self.dv_var = 0.0
         self.envelope_failing = False
         self.last_r_m = {GNSS_S: 0.0, RANGEFINDER_S: 0.0}
+        self.last_post_r_m = {GNSS_S: 0.0, RANGEFINDER_S: 0.0}  # the last innovation less what the channel took up
         self.r_avg_m = {GNSS_S: 0.0, RANGEFINDER_S: 0.0}
         self.last_sd_m = {GNSS_S: math.inf, RANGEFINDER_S: math.inf}
         self.level_since: dict[int, Optional[int]] = {GNSS: None, RNG: None}
@@ -383,6 +384,7 @@ class HypothesisLogic:
         sd = math.sqrt(S) if S > 0 else math.inf
         if last is not None and t - last <= self.stale_us[c] and not absent:
             self._note_sudden(name, t, r, sd, baro_z)
+        post_frac = aux.sigma_m * aux.sigma_m / S if S > 0 else 1.0
         self.last_z[name] = z
         self.last_r_m[name] = r
         # the failure's size: the innovation's recent mean (one sample is noise)
@@ -397,8 +399,14 @@ class HypothesisLogic:
             self._sequential(name, t, z, reject)
         if reject:
             changes[field_name] = None
+            self.last_post_r_m[name] = r
         else:
             self.last_accept_us[c] = t
+            # what is left of the innovation once the sample has entered: the
+            # next sample's jump is measured from there, not from the innovation
+            # the channel has just taken up (with its covariance opened, a GNSS
+            # channel took up 9 m between two samples: no jump of the GNSS's)
+            self.last_post_r_m[name] = r * post_frac
 
     def _record_aux(self, c: int, name: str, aux, t: int) -> Optional[int]:
         """What every sample of a stream feeds, excluded or not: its rate, the
@@ -422,7 +430,9 @@ class HypothesisLogic:
         """A sudden change of the innovation while this epoch's baro row is
         clean: neither the baro nor the INS (whose errors are integrals) can
         make it."""
-        jump = abs(r - self.last_r_m[name])
+        jump = abs(r - (self.last_post_r_m[name] if self.f.sudden_jump_measured else self.last_r_m[name]))
+        if jump != jump:
+            return  # the channel started again since the last sample: nothing to jump from
         js = self.jump_scale[name]
         scale = math.hypot(sd, self.last_sd_m[name])
         if self.f.sudden_jump_measured and js.sd is not None:
@@ -699,6 +709,7 @@ class HypothesisLogic:
         self.rejections[name].clear()
         self.warm_until[name] = t + self.warmup_us
         self.last_accept_us[c] = t
+        self.last_post_r_m[name] = math.nan
 
     # ------------------------------------------------------------------ the tests
 
