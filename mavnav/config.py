@@ -312,8 +312,9 @@ class AdaptiveFeatures(_Section):
     # that report a 1-sigma beyond monitor.alert_limit_m: their channels take the
     # baro's changes, so they cannot vouch for it at that limit (monitor/protection.py)
     own_sensor_floor: bool = True
-    # the baro's level against each aux channel on its measured scale (it only
-    # widens): a baro whose error exceeds the model's u (sigma_bb) is not a fault
+    # the baro's level against each aux channel on its measured scale (never
+    # below the model's threshold): a baro whose error exceeds the model's u
+    # (sigma_bb) is not a fault
     level_scale: bool = True
     # the baro's slow error u measured at run time from a short baro/INS second
     # difference (monitor/baronoise.py): the level tests (and the baro's

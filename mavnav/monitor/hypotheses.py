@@ -12,8 +12,9 @@ actions. The tests, with the hypotheses a failure implicates:
   baro (the channel's prediction rests on the baro; the INS between samples
   is held by the baro rows, so an INS fault shows first in the baro/INS
   test), or the sensor and the INS when the baro is excluded; a sudden jump
-  of the innovation while the same epoch's baro row is clean implicates the
-  sensor alone;
+  of the innovation (against the stream's measured sample-to-sample
+  scatter) while the same epoch's baro row is clean implicates the sensor
+  alone;
 * ``baro/INS`` (:mod:`.inscheck`): the baro's change over a window against the
   INS, and a per-sample jump gate; implicates the baro and the INS, and a
   clear pass rules both out;
@@ -50,12 +51,12 @@ from ..config import Config
 # the sensor words (the names GNSS, RNG, BARO are the bank's channel indices here)
 from ..sensors import BARO as BARO_S, BARO_INS as BARO_INS_S, GNSS as GNSS_S, INS as INS_S
 from ..sensors import RANGEFINDER as RANGEFINDER_S
+from .baronoise import BaroNoiseMeter
 from .cusum import Cusum, threshold_for
 from .decision import Decision, pair_reports_scaled
 from .doppler import MIN_SPAN_FRAC, DopplerCheck, Exceedance, InsDopplerCheck
 from .drift import DriftCheck
 from .fusion import fuse_heights
-from .baronoise import BaroNoiseMeter
 from .inscheck import InsBaroCheck
 from .kink import KinkSeries, MeanSquare, isolate, kink_fit, onsets
 from .levels import chi2_gate, normal_k
