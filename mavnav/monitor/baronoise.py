@@ -36,13 +36,13 @@ import math
 from typing import Optional
 
 from .inscheck import InsBaroCheck
-from .scale import MedianScale
+from .scale import MEDIAN_ABS_NORMAL, MedianScale
 
 
 # the relative standard deviation of a variance ratio read from the median of
 # |z| over N independent normal values, times sqrt(N): twice the median's,
 # 1 / (2 f(m) m) with m = 0.6745 and f(m) = 2 phi(m) the density of |z| there
-_M2_REL_SD = 2.0 / (2.0 * 0.6355531 * 0.6744897501960817)  # 2.33
+_M2_REL_SD = 2.0 / (2.0 * 0.6355531 * MEDIAN_ABS_NORMAL)  # 2.33
 
 
 class BaroNoiseMeter:

@@ -23,6 +23,7 @@ cannot teach the test to ignore it.
 from __future__ import annotations
 
 import math
+import statistics
 from collections import deque
 from typing import Optional
 
@@ -182,8 +183,5 @@ class MedianScale:
         if t_us < self.next_us or len(xs) < self.min_samples:
             return False
         self.next_us = t_us + self.update_us
-        vals = sorted(xs)
-        n = len(vals)
-        med = vals[n // 2] if n % 2 else 0.5 * (vals[n // 2 - 1] + vals[n // 2])
-        self.sd = med / MEDIAN_ABS_NORMAL
+        self.sd = statistics.median(xs) / MEDIAN_ABS_NORMAL
         return True
