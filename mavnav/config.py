@@ -513,6 +513,10 @@ class MonitorConfig(_Section):
     baro_jump_confirm_s: float = Field(0.5, ge=0)
     baro_jump_confirm_samples: int = Field(2, ge=1)
     baro_jump_stay_frac: float = Field(0.5, gt=0, le=1)
+    # ... and it must have settled there: a jump whose level still moves from one
+    # sample to the next (past the gate at the row's noise) waits up to this much
+    # longer, and is no step if it never settles.
+    baro_jump_settle_s: float = Field(1.0, ge=0)
     # The clean samples a jump is measured from: the median of this many, each
     # carried to the jump's time by the INS (one noisy sample is no reference).
     baro_jump_reference_samples: int = Field(5, ge=1)

@@ -100,3 +100,64 @@ def test_a_baro_step_that_stays_never_reaches_the_output_as_height(path, onset, 
     during = np.isfinite(h) & (t >= onset) & (t <= onset + length + 15.0)
     assert during.sum() > 100
     assert np.max(np.abs(h - h0)[during]) < 3.0  # the step is not height
+
+
+class _Heights(Sink):
+    name = "heights"
+
+    def __init__(self):
+        self.t, self.h, self.baro = [], [], []
+
+    def epoch(self, r):
+        self.t.append(r.t_us * 1e-6)
+        self.h.append(r.height_fused_m)
+        self.baro.append(r.baro_height_ref_m)
+
+
+def _readmissions(summary):
+    return [ev.t_s for ev in summary.alarms
+            if ev.source == "baro_ins" and ev.previous == "alarm" and ev.state == "nominal"]
+
+
+@pytest.mark.realdata
+@pytest.mark.skipif(not QUAD.exists(), reason="no shared flight logs")
+@pytest.mark.parametrize("spec", ["baro_ramp:magnitude=-8,onset=128,duration=0.8",
+                                  "baro_ramp:magnitude=6,onset=128,duration=1.2"], ids=["dive", "climb"])
+def test_a_fast_ramp_that_snaps_back_is_not_given_back_as_the_baros_offset(spec):
+    """The baro+INS channel follows a fast ramp the gate lets through; the
+    baro snapping back to its true level is then a jump against the INS, but
+    measured from a level the channel had followed along with the fault (the
+    window test was already in caution): giving it back at readmission put
+    the output 4.2 m (dive) and 6.3 m (climb) off for the rest of the flight."""
+    one = {"min_height_sensors": 1}
+    clean, _ = _fly(QUAD, **one)
+    faulty, summary = _fly(QUAD, spec, **one)
+    back = _readmissions(summary)
+    assert back and 128.0 < back[0] < 150.0
+    t, h = np.asarray(faulty.t), np.asarray(faulty.h)
+    h0 = np.interp(t, np.asarray(clean.t), np.asarray(clean.h))
+    after = np.isfinite(h) & (t > back[0] + 1.0)
+    assert after.sum() > 100
+    assert np.max(np.abs(h - h0)[after]) < 0.5
+
+
+FRS_GPS = SHARED_FLIGHTLOGS / "frs_gps_interference.ulg"  # PX4, baro and IMU only at take-off
+
+
+@pytest.mark.realdata
+@pytest.mark.skipif(not FRS_GPS.exists(), reason="no shared flight logs")
+def test_a_take_off_transient_that_dives_and_returns_is_no_step():
+    """At this flight's take-off the baro dives 6.4 m below the autopilot's
+    height over 0.8 s (prop wash) and is back within 0.6 s. Its jump was
+    confirmed as a step of -4.8 m while still diving, the return was never a
+    step of its own, and at readmission the output was put 4.8 m above the
+    baro (and the autopilot) for the rest of the flight. A step must settle."""
+    cfg = config_from_dict({})
+    out = _Heights()
+    summary = run(open_log(str(FRS_GPS), cfg.ingest), cfg, [out])
+    back = [s for s in _readmissions(summary) if 281.0 < s < 300.0]
+    assert back, "the baro is readmitted after the take-off transient"
+    t, h, b = np.asarray(out.t), np.asarray(out.h), np.asarray(out.baro)
+    after = np.isfinite(h) & np.isfinite(b) & (t > back[0]) & (t < back[0] + 30.0)
+    assert after.sum() > 50
+    assert np.max(np.abs(h - b)[after]) < 1.0

@@ -219,8 +219,9 @@ class HypothesisLogic:
         self.offset_scale = ResidualScale(m.residual_scale_tau_s, 0.0, math.inf, max_phi=0.0, prior_m2=0.0)
         self.baro_judged: Optional[tuple] = None  # this epoch's baro row: (r, sd, rejected)
         self.jump_confirmed: Optional[tuple] = None  # (t, cum_m, sigma)
-        # every confirmed baro step: (t opened, size m, its sd m), for the level
-        # a baro readmitted with no aux channel to rebase on comes back at
+        # every confirmed baro step: (t opened, size m, its sd m, measured from a
+        # level no test doubted), for the level a baro readmitted with no aux
+        # channel to rebase on comes back at
         self.baro_steps: deque = deque(maxlen=32)
         self.baro_excluded_us: Optional[int] = None
         # ramp onsets against the INS: the series, and each one's measured kink scatter
@@ -663,7 +664,10 @@ class HypothesisLogic:
             if reject and before:
                 ref = tuple(_last(before, m.baro_jump_reference_samples))
                 size = b - self._carried(ref, t)
-                self.jump = [t, size, sd, size, 0, ref]
+                # (and whether it is measured from a level no test doubted: a jump
+                # that opens while the baro is already in caution or out measures
+                # from a level the channel may have followed along with the fault)
+                self.jump = [t, size, sd, size, 0, ref, self.trackers[BARO_INS_S].state == "nominal"]
             elif not reject:
                 # of the last OFFSET_SEARCH_SAMPLES, the last baro_jump_reference_samples
                 # that are baro_jump_confirm_s old: the first that many found walking back
@@ -681,15 +685,24 @@ class HypothesisLogic:
                     self.offset_scale.push(t, b - self._carried(old, t))
                 before.append((t, b, ins.pos_m, ins.vel_mps, float(self.bank.x[self._anchor(t), 1])))
             return
-        j[3] = b - self._carried(j[5], t)
+        moved_m = b - self._carried(j[5], t) - j[3]
+        j[3] += moved_m
         j[4] += 1
         if t - j[0] < m.baro_jump_confirm_s * 1e6 or j[4] < m.baro_jump_confirm_samples:
+            return
+        # a step has settled: its last sample sits where the one before it did (within
+        # the gate at this row's noise); a baro still moving is a transient on its way
+        # somewhere (take-off prop wash dives 6 m and comes back within a second), and
+        # a level read off it would be given back at readmission as the baro's offset
+        if abs(moved_m) > math.sqrt(self.gate) * sd * max(1.0, self.scale[BARO_S].sd):
+            if t - j[0] >= (m.baro_jump_confirm_s + m.baro_jump_settle_s) * 1e6:
+                self.jump = None  # never settled: not a step (the windowed tests own drifts)
             return
         # a step stays, and beats the baro's own scatter of such offsets at the jump level
         floor = math.sqrt(self.baro_gate * max(self.offset_scale.m2, 0.0))
         if j[3] * j[1] > 0 and abs(j[3]) >= max(m.baro_jump_stay_frac * abs(j[1]), floor):
             self.jump_confirmed = (t, j[3], abs(j[1]) / j[2])
-            self.baro_steps.append((j[0], j[3], j[2]))
+            self.baro_steps.append((j[0], j[3], j[2], j[6]))
         self.jump = None
 
     def _carried(self, samples, t: int) -> float:
@@ -1445,11 +1458,23 @@ class HypothesisLogic:
         else:
             # nothing held the height without the baro: the baro+INS channel
             # followed the baro, so its level moves back by the steps the baro
-            # made against the INS while out (a step and its return cancel)
-            since = (self.baro_excluded_us or t) - int(1e6 * (self.m.baro_jump_confirm_s + 1.0))
-            steps = [(size, sd) for t0, size, sd in self.baro_steps if t0 >= since]
+            # made against the INS while out (a step and its return cancel).
+            # Only when every step was measured from a level no test doubted:
+            # one measured from a level the channel had followed along with the
+            # fault (a fast ramp, then the baro snapping back) gives back the
+            # fault itself. Then the baro comes back at its own level (the steps'
+            # sum is not added to its uncertainty: past max_channel_sigma_m that
+            # would take the only height there is out of the output for good).
+            since = (self.baro_excluded_us or t) - int(1e6 * (self.m.baro_jump_confirm_s
+                                                              + self.m.baro_jump_settle_s + 1.0))
+            steps = [s for s in self.baro_steps if s[0] >= since]
             if steps:
-                bank.shift_baro_level(BARO, sum(sz for sz, _ in steps), sum(sd * sd for _, sd in steps))
+                total = sum(s[1] for s in steps)
+                var = sum(s[2] * s[2] for s in steps)
+                if all(s[3] for s in steps):
+                    bank.shift_baro_level(BARO, total, var)
+                else:
+                    bank.shift_baro_level(BARO, 0.0, var)
         self.baro_steps.clear()
 
     def _ins_residual(self) -> Optional[tuple]:
