@@ -373,6 +373,7 @@ class ChannelBank:
         self.P = np.zeros((N_CH, N_STATES, N_STATES))
         self.baro_prev = np.full(N_CH, math.nan)
         self.t_us: Optional[int] = None
+        self.start_baro_bias_m2: Optional[float] = None
         self._inn = np.zeros((N_CH, 2))
         self._sdiag = np.zeros((N_CH, 2))
         self._s12 = np.zeros(N_CH)
@@ -407,6 +408,7 @@ class ChannelBank:
         this start only (a reference taken at the datum ties it closer); a
         channel re-initialised later in the flight takes the model's prior."""
         model = self.model
+        self.start_baro_bias_m2 = baro_bias_m2  # a start again within the warm-up takes the same prior
         if baro_bias_m2 is not None:
             p0 = list(model.p0_diag)
             p0[DH] = baro_bias_m2

@@ -361,6 +361,13 @@ class MonitorConfig(_Section):
     # After a (re)start the filters converge for this long: gates still
     # protect the states, but no window statistic or comparison raises alarms.
     warmup_s: float = Field(5.0, ge=0)
+    # A start whose own baro rows are gated this many in a row within warmup_s
+    # took its speed from a glitch (the first difference sets it: a baro that
+    # settles after boot read as 22 m/s, and every later row was gated): the
+    # filters start again on the latest sample, at most start_restarts_max
+    # times (an erratic baro is then the tests' business).
+    start_restart_rows: int = Field(3, ge=1)
+    start_restarts_max: int = Field(3, ge=0)
     # A source in caution returns to nominal only after this long clean.
     clear_s: float = Field(1.0, ge=0)
     # Rejected samples in the window before a source is in caution / alarm.

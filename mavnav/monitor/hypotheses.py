@@ -170,6 +170,8 @@ class HypothesisLogic:
         self.last_z = {GNSS_S: math.nan, RANGEFINDER_S: math.nan, BARO_INS_S: math.nan}
         self.consistent_since: dict[str, Optional[int]] = {s: None for s in SENSOR_SOURCES}
         self.warm_until = {s: t_us + self.warmup_us for s in SENSOR_SOURCES}
+        self.start_rejects = 0  # the baro rows gated in a row within the warm-up
+        self.restarts = 0
         self.pending_raw: dict[int, Optional[tuple]] = {GNSS: None, RNG: None}
         self.sensor_var_floor = [0.0, 0.0, 0.0]
         self.bank.baro_on[:] = True
@@ -345,6 +347,9 @@ class HypothesisLogic:
         # the jump gate at the baro row's measured scatter (never below the model's)
         sc = self.scale[BARO_S]
         reject = self.f.innovation_gating and nu2 > self.baro_gate * sc.sd ** 2
+        if t < self.warm_until[BARO_INS_S] and self._restarted_on(t, ep.baro_m, reject):
+            changes["baro_restart"] = True  # differencing restarts from this sample
+            return math.inf
         if not reject and self.jump is None:
             sc.push(t, z)
         if not t < self.warm_until[BARO_INS_S]:  # not self._warm(BARO_INS_S, t)
@@ -353,6 +358,23 @@ class HypothesisLogic:
         if reject:
             changes["baro_restart"] = True  # no baro row anywhere; differencing restarts
         return abs(z)
+
+    def _restarted_on(self, t: int, baro_m: float, reject: bool) -> bool:
+        """Within the warm-up: the filters start again on this sample if their
+        own baro rows have been gated ``start_restart_rows`` in a row (a start
+        that took its speed from a glitch rejects every sample after it, and
+        would coast on the INS until its sigma takes it out of the output)."""
+        self.start_rejects = self.start_rejects + 1 if reject else 0
+        if self.start_rejects < self.m.start_restart_rows or self.restarts >= self.m.start_restarts_max:
+            return False
+        self.bank.start(t, baro_m, self.bank.start_baro_bias_m2)
+        self.restarts += 1
+        self.start_rejects = 0
+        self.jump = None
+        self.before_jump.clear()
+        self.last_z[BARO_INS_S] = math.nan
+        self.warm_until = {s: t + self.warmup_us for s in SENSOR_SOURCES}
+        return True
 
     def _latest_baro_z(self, t: int) -> float:
         """No baro sample in this epoch (each sample has its own): the latest
