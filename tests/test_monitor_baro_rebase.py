@@ -57,12 +57,13 @@ def test_the_rebased_bias_carries_the_channels_height_error_and_the_samples_nois
 
 class _Out(Sink):
     def __init__(self):
-        self.t, self.h, self.state = [], [], []
+        self.t, self.h, self.state, self.baro = [], [], [], []
 
     def epoch(self, r):
         self.t.append(r.t_us * 1e-6)
         self.h.append(r.height_fused_m)
         self.state.append(r.overall)
+        self.baro.append(r.baro_height_ref_m)
 
 
 def _fly(path, spec=None, **monitor):
@@ -100,18 +101,6 @@ def test_a_baro_step_that_stays_never_reaches_the_output_as_height(path, onset, 
     during = np.isfinite(h) & (t >= onset) & (t <= onset + length + 15.0)
     assert during.sum() > 100
     assert np.max(np.abs(h - h0)[during]) < 3.0  # the step is not height
-
-
-class _Heights(Sink):
-    name = "heights"
-
-    def __init__(self):
-        self.t, self.h, self.baro = [], [], []
-
-    def epoch(self, r):
-        self.t.append(r.t_us * 1e-6)
-        self.h.append(r.height_fused_m)
-        self.baro.append(r.baro_height_ref_m)
 
 
 def _readmissions(summary):
@@ -153,7 +142,7 @@ def test_a_take_off_transient_that_dives_and_returns_is_no_step():
     step of its own, and at readmission the output was put 4.8 m above the
     baro (and the autopilot) for the rest of the flight. A step must settle."""
     cfg = config_from_dict({})
-    out = _Heights()
+    out = _Out()
     summary = run(open_log(str(FRS_GPS), cfg.ingest), cfg, [out])
     back = [s for s in _readmissions(summary) if 281.0 < s < 300.0]
     assert back, "the baro is readmitted after the take-off transient"
