@@ -16,12 +16,9 @@ shown as good.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
-
-import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -29,14 +26,12 @@ sys.path.insert(0, str(HERE.parent))
 
 from preamble import announce  # noqa: E402
 from realflights import find_flights  # noqa: E402
+from scoremetrics import STATES, departure  # noqa: E402
 
 from mavnav.audit import audit_file  # noqa: E402
 from mavnav.config import config_from_dict  # noqa: E402
 from mavnav.errors import MavnavError  # noqa: E402
 from mavnav.sinks.base import Sink  # noqa: E402
-
-STATES = ("nominal", "caution", "unavailable", "alarm")
-
 
 class _Heights(Sink):
     name = "heights"
@@ -47,29 +42,6 @@ class _Heights(Sink):
     def epoch(self, r):
         self.rows.append((r.t_s, r.height_fused_m, r.baro_height_ref_m, r.gnss_height_ref_m,
                           r.autopilot_height_ref_m, r.overall))
-
-
-def departure(t_s, fused_m, others_m, states, margin_m: float) -> tuple[dict, float, float]:
-    """Seconds (each epoch holds until the next) with ``fused_m`` finite and more
-    than ``margin_m`` from every finite row of ``others_m``, by state; the
-    largest such distance and its time. An epoch with no other height is not
-    counted."""
-    t_s = np.asarray(t_s, float)
-    f = np.asarray(fused_m, float)
-    o = np.asarray(others_m, float).reshape(-1, t_s.size)
-    with np.errstate(invalid="ignore"):
-        gap = np.abs(o - f)
-        gap[~np.isfinite(gap)] = np.inf
-        d = gap.min(axis=0)
-    ok = np.isfinite(f) & np.isfinite(d)
-    dt = np.diff(t_s, append=t_s[-1]) if t_s.size else t_s
-    far = ok & (d > margin_m)
-    st = np.asarray(states)
-    out = {s: float(dt[far & (st == s)].sum()) for s in STATES}
-    if not ok.any():
-        return out, math.nan, math.nan
-    k = int(np.argmax(np.where(ok, d, -np.inf)))
-    return out, float(d[k]), float(t_s[k])
 
 
 def _flight(args):

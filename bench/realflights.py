@@ -52,10 +52,10 @@ sys.path.insert(0, str(HERE.parent))  # the repository's mavnav, before the sibl
 
 if __package__:  # imported as bench.realflights (the tests)
     from .autopilot_baseline import BaselineConfig, run_baseline
-    from .scoremetrics import alarm_onsets, detect, tta_stats
+    from .scoremetrics import STATES, alarm_onsets, departure, detect, tta_stats
 else:
     from autopilot_baseline import BaselineConfig, run_baseline
-    from scoremetrics import alarm_onsets, detect, tta_stats
+    from scoremetrics import STATES, alarm_onsets, departure, detect, tta_stats
 
 from mavnav.audit import AuditSink, audit_file  # noqa: E402
 from mavnav.config import config_from_dict  # noqa: E402
@@ -73,6 +73,8 @@ ONSET_FRACS = (0.25, 0.5, 0.75)
 FAULT_DURATION_S = 20.0
 HAZARD_M = 3.0
 MIN_RATE_HZ = 5.0
+# the fused height this far from every raw height at once is the monitor's own doing (bench/output_departure.py)
+AWAY_MARGIN_M = 2.0
 
 FAULTS = (
     ("gnss_step", "gnss_step:magnitude=10", "gnss"),
@@ -154,6 +156,29 @@ class _Held(Sink):
         if held and not self._on:
             self.episodes += 1
         self._on, self._t = held, r.t_s
+
+
+class _Away(Sink):
+    """The fused height against every raw height the flight has (baro, GNSS, the
+    autopilot's): seconds more than ``AWAY_MARGIN_M`` from all of them at once,
+    by overall state (``scoremetrics.departure``). Away from every sensor, the
+    output is the monitor's own doing."""
+
+    name = "away"
+
+    def __init__(self):
+        self.rows: List[tuple] = []
+
+    def epoch(self, r) -> None:
+        self.rows.append((r.t_s, r.height_fused_m, r.baro_height_ref_m, r.gnss_height_ref_m,
+                          r.autopilot_height_ref_m, r.overall))
+
+    def summary(self) -> dict:
+        if len(self.rows) < 2:
+            return dict.fromkeys(STATES, 0.0)
+        t, f, b, g, ap, st = zip(*self.rows)
+        secs, _, _ = departure(t, f, [b, g, ap], st, AWAY_MARGIN_M)
+        return {k: round(v, 2) for k, v in secs.items()}
 
 
 class _RangeCount(Sink):
@@ -245,8 +270,9 @@ def flight_job(spec: dict) -> dict:
     out = {"path": path, "sitl": spec["sitl"]}
     rng = _RangeCount()
     held = _Held()
+    away = _Away()
     try:
-        res = audit_file(path, _cfg("adaptive"), extra_sinks=[rng, held])
+        res = audit_file(path, _cfg("adaptive"), extra_sinks=[rng, held, away])
     except MavnavError as exc:
         out["error"] = str(exc)
         return out
@@ -254,6 +280,7 @@ def flight_job(spec: dict) -> dict:
     out["audit"]["rangefinder"] = rng.summary(res["duration_s"])
     out["audit"]["held_episodes"] = held.episodes
     out["audit"]["held_s"] = round(held.held_s, 2)
+    out["audit"]["away_s"] = away.summary()
     rates = res["inputs"]["rates_hz"]
     fast = rates["imu"] >= MIN_RATE_HZ and rates["baro"] >= MIN_RATE_HZ
     out["fast"] = fast
@@ -466,7 +493,10 @@ def report(groups: Dict[str, List[Path]], results: List[dict], wall: float, args
       + " % nominal/caution/unavailable/alarm"
       + f"; fused vs autopilot RMS (time-weighted) "
       f"{math.sqrt(tot['sq'] / tot['sq_t']) if tot['sq_t'] else float('nan'):.2f} m, of which what varies "
-      f"(each flight's own datum offset taken out) {math.sqrt(tot['var'] / tot['sq_t']) if tot['sq_t'] else float('nan'):.2f} m.")
+      f"(each flight's own datum offset taken out) {math.sqrt(tot['var'] / tot['sq_t']) if tot['sq_t'] else float('nan'):.2f} m"
+      f"; output more than {AWAY_MARGIN_M:g} m from every raw height at once (baro, GNSS, autopilot), s "
+      + "/".join(f"{sum(r['audit'].get('away_s', {}).get(k, 0.0) for r in ok):.1f}" for k in STATES)
+      + " nominal/caution/unavailable/alarm.")
     p("")
     p(rangefinder_lines(ok, faults=not args.no_faults))
     faulted = [row for r in ok for row in r.get("faults", [])]

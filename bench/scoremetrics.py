@@ -320,3 +320,31 @@ def misleading(t_est: Sequence[float], h_est: Sequence[float], pl_m: Sequence[fl
               & np.isin(np.asarray(overall, dtype=object), USABLE_STATES))
     err = np.abs(h - np.interp(t, tt, ht))
     return float(dt[usable & (err > pl)].sum()), float(dt[usable].sum())
+
+
+# ---------------------------------------------------------------- the output against every sensor
+
+STATES = ("nominal", "caution", "unavailable", "alarm")
+
+
+def departure(t_s, fused_m, others_m, states, margin_m: float) -> tuple[dict, float, float]:
+    """Seconds (each epoch holds until the next) with ``fused_m`` finite and more
+    than ``margin_m`` from every finite row of ``others_m``, by state; the
+    largest such distance and its time. An epoch with no other height is not
+    counted."""
+    t_s = np.asarray(t_s, float)
+    f = np.asarray(fused_m, float)
+    o = np.asarray(others_m, float).reshape(-1, t_s.size)
+    with np.errstate(invalid="ignore"):
+        gap = np.abs(o - f)
+        gap[~np.isfinite(gap)] = np.inf
+        d = gap.min(axis=0)
+    ok = np.isfinite(f) & np.isfinite(d)
+    dt = np.diff(t_s, append=t_s[-1]) if t_s.size else t_s
+    far = ok & (d > margin_m)
+    st = np.asarray(states)
+    out = {s: float(dt[far & (st == s)].sum()) for s in STATES}
+    if not ok.any():
+        return out, math.nan, math.nan
+    k = int(np.argmax(np.where(ok, d, -np.inf)))
+    return out, float(d[k]), float(t_s[k])

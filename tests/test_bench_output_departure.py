@@ -1,4 +1,5 @@
-"""bench/output_departure.py's measure: time the output sat away from every raw height."""
+"""The scorecards' measure of an output away from every raw height (bench/scoremetrics.py ``departure``,
+read by bench/output_departure.py and bench/realflights.py)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ import math
 
 import pytest
 
-from bench.output_departure import departure
+from bench.scoremetrics import departure
 
 NAN = math.nan
 
