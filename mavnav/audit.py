@@ -106,7 +106,7 @@ class AuditSink(Sink):
         return out
 
 
-def _notes(result: dict, sink: AuditSink, cfg: Config, stats) -> list[str]:
+def _notes(result: dict, sink: AuditSink, cfg: Config, stats, counts: dict) -> list[str]:
     notes = [f"log damaged: {d}" for d in stats.damage]
     if stats.not_applicable:
         # the model does not fit this vehicle: that is the whole story
@@ -123,6 +123,10 @@ def _notes(result: dict, sink: AuditSink, cfg: Config, stats) -> list[str]:
         notes.append("no filter epoch: the log lacks IMU or baro data the estimator needs")
     if result["fused_vs_autopilot_rms_m"] is None:
         notes.append("no autopilot height to compare with")
+    n = counts.get("glitch_restarts", 0)
+    if n:
+        notes.append(f"filters started again {n} time(s) within the warm-up: their first baro difference was a "
+                     "glitch, and every baro row after it was gated")
     return notes
 
 
@@ -170,7 +174,7 @@ def audit_file(path: str | Path, cfg: Config, sysid: Optional[int] = None,
     }
     if faults:
         result["injected"] = [dict(describe_fault(f), **rep) for f, rep in zip(faults, src.injector.report())]
-    result["notes"] = _notes(result, sink, cfg, stats)
+    result["notes"] = _notes(result, sink, cfg, stats, getattr(summary, "monitor_counters", {}))
     return result
 
 

@@ -96,6 +96,6 @@ def run(
             if should_stop is not None and should_stop():
                 break
     finally:
-        summary.monitor_counters = dict(monitor.counters)  # type: ignore[attr-defined]
+        summary.monitor_counters = monitor.counts()  # type: ignore[attr-defined]
         out.close()
     return summary

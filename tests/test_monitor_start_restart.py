@@ -66,3 +66,17 @@ def test_a_glitch_on_the_second_baro_sample_starts_the_filters_again(magnitude):
             assert np.max(d[late]) < bound
         else:  # the mechanism: without a start again the glitch latches
             assert not (np.nanmax(d[late]) < 10.0) or np.mean(~np.isfinite(h[late])) > 0.1
+
+
+@pytest.mark.realdata
+@pytest.mark.skipif(not DKLA.exists(), reason="no shared flight logs")
+def test_the_audit_says_when_the_filters_started_again():
+    from mavnav.audit import audit_file
+
+    cfg = config_from_dict({})
+    first = [s.t_us * 1e-6 for s in open_log(str(DKLA), cfg.ingest) if isinstance(s, BaroHeight)][:3]
+    spec = f"baro_step:magnitude=2.4,onset={(first[0] + first[1]) / 2:.6f},duration={(first[2] - first[0]) / 2:.6f}"
+    said = [n for n in audit_file(DKLA, cfg, faults=[spec])["notes"] if "started again" in n]
+    assert said == ["filters started again 1 time(s) within the warm-up: their first baro difference was a "
+                    "glitch, and every baro row after it was gated"]
+    assert not [n for n in audit_file(DKLA, cfg)["notes"] if "started again" in n]

@@ -83,6 +83,7 @@ class Monitor:
         self.counters: Counter[str] = Counter()
         self.k_vpl = normal_k(self.mcfg.integrity_risk)
         self.boot = 0
+        self.logic = None
         self._reset()
 
     # ------------------------------------------------------------------ lifecycle
@@ -91,6 +92,8 @@ class Monitor:
         from .hypotheses import HypothesisLogic
         from .paper import PaperLogic
 
+        if self.logic is not None:  # the boot before: what its logic did that the counters report
+            self.counters["glitch_restarts"] += getattr(self.logic, "glitch_restarts", 0)
         self.builder = EpochBuilder(self.cfg)
         self.bank = ChannelBank(self.model)
         logic_cls = PaperLogic if self.mcfg.mode == "paper" else HypothesisLogic
@@ -104,6 +107,15 @@ class Monitor:
         self._last_t_us: Optional[int] = None
         self._rates_checked_us: Optional[int] = None
         self._baro_at_datum = False  # this boot's baro reference was taken at the datum
+
+    def counts(self) -> dict:
+        """What happened over the run, every boot: the counters, with the
+        current logic's starts again on a baro glitch."""
+        out = dict(self.counters)
+        n = out.get("glitch_restarts", 0) + getattr(self.logic, "glitch_restarts", 0)
+        if n:
+            out["glitch_restarts"] = n
+        return out
 
     # ------------------------------------------------------------------ fold
 

@@ -146,6 +146,7 @@ class HypothesisLogic:
         self.warmup_us = int(m.warmup_s * 1e6)
         self.kink_margin = chi2_gate(m.kink_isolation_prob)
         self.t0_us = 0
+        self.glitch_restarts = 0  # starts again on a baro glitch, over this logic's life (reported by the audit)
         self._h_cache: dict[int, tuple] = {}  # rate key -> (h, slow over fast threshold)
         self._h_last: dict[str, tuple] = {}  # stream -> (its interval when last asked, (h, ratio))
 
@@ -369,6 +370,7 @@ class HypothesisLogic:
             return False
         self.bank.start(t, baro_m, self.bank.start_baro_bias_m2)
         self.restarts += 1
+        self.glitch_restarts += 1
         self.start_rejects = 0
         self.jump = None
         self.before_jump.clear()
