@@ -25,37 +25,22 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 
 from preamble import announce  # noqa: E402
-from realflights import find_flights  # noqa: E402
-from scoremetrics import STATES, departure  # noqa: E402
+from realflights import AwaySink, find_flights  # noqa: E402
+from scoremetrics import STATES  # noqa: E402
 
 from mavnav.audit import audit_file  # noqa: E402
 from mavnav.config import config_from_dict  # noqa: E402
 from mavnav.errors import MavnavError  # noqa: E402
-from mavnav.sinks.base import Sink  # noqa: E402
-
-class _Heights(Sink):
-    name = "heights"
-
-    def __init__(self):
-        self.rows = []
-
-    def epoch(self, r):
-        self.rows.append((r.t_s, r.height_fused_m, r.baro_height_ref_m, r.gnss_height_ref_m,
-                          r.autopilot_height_ref_m, r.overall))
-
 
 def _flight(args):
     path, margin_m = args
-    sink = _Heights()
+    sink = AwaySink()
     try:
         audit_file(path, config_from_dict({}), extra_sinks=[sink])
     except MavnavError as e:
         return path.name, None, str(e)
-    if len(sink.rows) < 2:
-        return path.name, None, "no epochs"
-    cols = list(zip(*sink.rows))
-    t, f, b, g, ap, st = cols
-    return path.name, departure(t, f, [b, g, ap], st, margin_m), None
+    got = sink.departure(margin_m)
+    return path.name, got, None if got is not None else "no epochs"
 
 
 def main(argv=None) -> int:

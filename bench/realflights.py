@@ -158,11 +158,11 @@ class _Held(Sink):
         self._on, self._t = held, r.t_s
 
 
-class _Away(Sink):
+class AwaySink(Sink):
     """The fused height against every raw height the flight has (baro, GNSS, the
-    autopilot's): seconds more than ``AWAY_MARGIN_M`` from all of them at once,
-    by overall state (``scoremetrics.departure``). Away from every sensor, the
-    output is the monitor's own doing."""
+    autopilot's): seconds more than a margin from all of them at once, by
+    overall state (``scoremetrics.departure``; also bench/output_departure.py).
+    Away from every sensor, the output is the monitor's own doing."""
 
     name = "away"
 
@@ -173,11 +173,16 @@ class _Away(Sink):
         self.rows.append((r.t_s, r.height_fused_m, r.baro_height_ref_m, r.gnss_height_ref_m,
                           r.autopilot_height_ref_m, r.overall))
 
-    def summary(self) -> dict:
+    def departure(self, margin_m: float = AWAY_MARGIN_M) -> Optional[tuple]:
+        """``scoremetrics.departure`` of the epochs seen (None with fewer than two)."""
         if len(self.rows) < 2:
-            return dict.fromkeys(STATES, 0.0)
+            return None
         t, f, b, g, ap, st = zip(*self.rows)
-        secs, _, _ = departure(t, f, [b, g, ap], st, AWAY_MARGIN_M)
+        return departure(t, f, [b, g, ap], st, margin_m)
+
+    def summary(self) -> dict:
+        got = self.departure()
+        secs = got[0] if got is not None else dict.fromkeys(STATES, 0.0)
         return {k: round(v, 2) for k, v in secs.items()}
 
 
@@ -270,7 +275,7 @@ def flight_job(spec: dict) -> dict:
     out = {"path": path, "sitl": spec["sitl"]}
     rng = _RangeCount()
     held = _Held()
-    away = _Away()
+    away = AwaySink()
     try:
         res = audit_file(path, _cfg("adaptive"), extra_sinks=[rng, held, away])
     except MavnavError as exc:
