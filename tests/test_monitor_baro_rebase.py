@@ -150,3 +150,27 @@ def test_a_take_off_transient_that_dives_and_returns_is_no_step():
     after = np.isfinite(h) & np.isfinite(b) & (t > back[0]) & (t < back[0] + 30.0)
     assert after.sum() > 50
     assert np.max(np.abs(h - b)[after]) < 1.0
+
+
+@pytest.mark.realdata
+@pytest.mark.slow
+@pytest.mark.skipif(not DKLA.exists(), reason="no shared flight logs")
+def test_a_step_that_ended_while_the_baro_was_out_is_not_given_back():
+    """A 5 m baro step for 20 s on dkla at 132.8 s: while the baro is out, the
+    flight's own INS/Doppler disagreement (146.8 s) puts the INS out too, so
+    nothing rebases the baro on an aux channel at readmission. The step's
+    return was never seen as a jump (the gate is anchored on the GNSS channel,
+    which the returning baro agrees with), and the +5 m step alone was given
+    back: the output sat 5.2 m off the unfaulted flight at 'nominal' for the
+    rest of the flight. The GNSS channel vouched for the baro's level at
+    readmission, so no step is given back."""
+    onset, length = 132.8, 20.0
+    clean, _ = _fly(DKLA)
+    faulty, summary = _fly(DKLA, f"baro_step:magnitude=5,onset={onset:g},duration={length:g}")
+    back = [s for s in _readmissions(summary) if s > onset + length]
+    assert back, "the baro is readmitted after its step ended"
+    t, h = np.asarray(faulty.t), np.asarray(faulty.h)
+    h0 = np.interp(t, np.asarray(clean.t), np.asarray(clean.h))
+    after = np.isfinite(h) & (t > back[0]) & (t < back[0] + 40.0)
+    assert after.sum() > 100
+    assert np.max(np.abs(h - h0)[after]) < 1.0
