@@ -75,6 +75,8 @@ HAZARD_M = 3.0
 MIN_RATE_HZ = 5.0
 # the fused height this far from every raw height at once is the monitor's own doing (bench/output_departure.py)
 AWAY_MARGIN_M = 2.0
+# what a fault leaves: the output against the unfaulted flight's this long after the fault ended (s)
+AFTER_S = (10.0, 40.0)
 
 FAULTS = (
     ("gnss_step", "gnss_step:magnitude=10", "gnss"),
@@ -363,7 +365,9 @@ def _part2(path: str, rates: dict, faults=FAULTS, contenders=CONTENDERS) -> tupl
                 row[m] = {"detected": d.detected, "tta_s": d.tta_s, "isolated": d.isolated, "alert_s": alert,
                           "in_use": _in_use(clean[m], onset, source),
                           "blamed": list(d.first_sources), "wrong": wrong, "wrong_by_fault": own,
-                          "hazard_s": _hazard_s(r, clean[m], onset, end)}
+                          "hazard_s": _hazard_s(r, clean[m], onset, end + 2.0),
+                          "hazard_after_s": _hazard_s(r, clean[m], end + 2.0, t_hi),
+                          "left_m": _left_m(r, clean[m], end)}
             rows.append(row)
     return rows, skipped
 
@@ -411,12 +415,13 @@ def _in_use(clean: dict, onset: float, source: str) -> bool:
     return bool(clean["used"][j, CHANNEL_OF_SOURCE[source]]) and clean["overall"][j] in ("nominal", "caution")
 
 
-def _hazard_s(r: dict, clean: dict, onset: float, end: float) -> float:
-    """Seconds of output more than HAZARD_M from the unfaulted output while nominal/caution."""
+def _hazard_s(r: dict, clean: dict, t0: float, t1: float) -> float:
+    """Seconds of output more than HAZARD_M from the unfaulted output while
+    nominal/caution, within [t0, t1]."""
     t, h, st = r["t"], r["h"], r["overall"]
     if t.size == 0 or clean["t"].size == 0:
         return 0.0
-    w = (t >= onset) & (t <= end + 2.0)
+    w = (t >= t0) & (t <= t1)
     if not w.any():
         return 0.0
     h0 = np.interp(t[w], clean["t"], clean["h"])
@@ -426,6 +431,44 @@ def _hazard_s(r: dict, clean: dict, onset: float, end: float) -> float:
         return 0.0
     dt = np.diff(t[w], append=t[w][-1])
     return float(dt[bad].sum())
+
+
+def _left_m(r: dict, clean: dict, end: float) -> Optional[float]:
+    """What a fault leaves once it has ended: the median distance of the fused
+    height (whatever the state: it is what a user sees) from the unfaulted
+    flight's over AFTER_S after the fault ended, when both have one there."""
+    t, h = r["t"], r["h"]
+    w = (t >= end + AFTER_S[0]) & (t <= end + AFTER_S[1]) & np.isfinite(h)
+    if w.sum() < 5 or clean["t"].size == 0:
+        return None
+    d = np.abs(h[w] - np.interp(t[w], clean["t"], clean["h"]))
+    d = d[np.isfinite(d)]
+    return round(float(np.median(d)), 3) if d.size >= 5 else None
+
+
+def after_lines(faulted: List[dict]) -> str:
+    """Once the fault has ended: hazardous output (as in the fault's window)
+    and the offset it leaves in the output, per fault kind."""
+    out = [f"After the fault ends (its sensor right again): runs with hazardous output from 2 s after its end "
+           f"to the end of the flight, and the fused height's median distance from the unfaulted flight's "
+           f"{AFTER_S[0]:g}-{AFTER_S[1]:g} s after its end, in any state (runs with an output there: "
+           f"median, runs leaving more than 1 m, the largest):", ""]
+    out.append("| fault | " + " | ".join(f"{m}: hazardous after / left: median m, > 1 m, max m" for m in CONTENDERS)
+               + " |")
+    out.append("|---|" + "---|" * len(CONTENDERS))
+    for name in [f[0] for f in FAULTS] + ["all"]:
+        rows = [x for x in faulted if name == "all" or x["fault"] == name]
+        if not rows:
+            continue
+        cells = []
+        for m in CONTENDERS:
+            haz = sum(x[m].get("hazard_after_s", 0.0) > 0 for x in rows)
+            left = [x[m]["left_m"] for x in rows if x[m].get("left_m") is not None]
+            med = float(np.median(left)) if left else math.nan
+            cells.append(f"{haz} / {fmt(med)}, {sum(v > 1.0 for v in left)} of {len(left)}, "
+                         f"{fmt(max(left) if left else math.nan)}")
+        out.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(out)
 
 
 # ---------------------------------------------------------------- report
@@ -546,6 +589,8 @@ def report(groups: Dict[str, List[Path]], results: List[dict], wall: float, args
         p("")
         applicable = [x for x in faulted if x["samples_changed"] > 0]
         p(in_use_lines(applicable))
+        p("")
+        p(after_lines(applicable))
         p("")
         p(f"Runs whose fault changed any sample (the flight has the sensor): {len(applicable)} of {len(faulted)}. "
           "Wrong exclusions the unfaulted flight does not make within 2 s (the fault's own): "

@@ -89,3 +89,28 @@ def test_report_says_no_flight_has_a_fast_rangefinder():
     assert ("* SITL_wlichon_baseline_00000001.BIN: 20.0 Hz of readings, 0.0 Hz usable (invalid_status "
             f"{rng['readings']} refused)") in text
     assert "not faulted: usable readings below 5 Hz" in text
+
+
+def _trace(t, h, overall):
+    import numpy as np
+    return {"t": np.asarray(t, float), "h": np.asarray(h, float), "overall": np.asarray(overall)}
+
+
+@pytest.mark.parametrize("left,state,hazard", [(4.0, "nominal", True), (4.0, "unavailable", False),
+                                               (0.2, "nominal", False)])
+def test_what_a_fault_leaves_after_it_ended(left, state, hazard):
+    """A fault from 10 to 30 s: the output is 6 m off inside it, then `left`
+    metres off to the end of the flight, in `state`. Hazard inside the window
+    is the fault's; hazard after it is what it left while offered as usable;
+    the offset left is measured in any state (a user still sees that height)."""
+    import numpy as np
+    t = np.arange(0.0, 100.0, 0.1)
+    clean = _trace(t, np.sin(t), ["nominal"] * t.size)
+    h = np.sin(t) + np.where((t >= 10) & (t <= 30), 6.0, np.where(t > 30, left, 0.0))
+    st = np.where((t >= 10) & (t <= 32), "alarm", state)
+    r = _trace(t, h, st)
+    assert rf._hazard_s(r, clean, 10.0, 32.0) == 0.0  # in alarm through the window
+    assert (rf._hazard_s(r, clean, 32.0, 100.0) > 60.0) == hazard
+    assert rf._left_m(r, clean, 30.0) == pytest.approx(left, abs=1e-6)
+    assert "| baro_step |" in rf.after_lines([{"fault": "baro_step", **{m: {"hazard_after_s": 1.0, "left_m": left}
+                                                                          for m in rf.CONTENDERS}}])
