@@ -1470,11 +1470,14 @@ class HypothesisLogic:
         noise = bank.model.sigma_bb_m ** 2 + self.baro_white_var
         avail = self._available(t)
         best = None
-        vouched = False  # an aux channel that ran without the baro held its level at readmission
+        # the baro's offset from its level before the fault, as read by the surest aux
+        # channel that ran without it (its baro bias is the one from before)
+        seen_m, seen_var = None, math.inf
         for c, name in AUX:
             if name in self.excluded or not avail[c] or bank.baro_on[c]:
                 continue
-            vouched = True
+            if bank.P[c, 0, 0] < seen_var:
+                seen_m, seen_var = self.last_baro_m - (bank.x[c, 0] + bank.x[c, 2]), bank.P[c, 0, 0]
             if not aux:
                 continue  # (with the INS at fault the aux channels start again instead)
             bank.rebase_baro_bias(c, self.last_baro_m, noise)
@@ -1493,19 +1496,20 @@ class HypothesisLogic:
             # fault itself. Then the baro comes back at its own level (the steps'
             # sum is not added to its uncertainty: past max_channel_sigma_m that
             # would take the only height there is out of the output for good).
-            # Nor when an aux channel that ran without the baro vouched for its
-            # level at readmission (the INS at fault too, so nothing rebased on
-            # it): the baro sits where that sensor says, so a step it made while
-            # out has gone back, though the gate, anchored on that channel, saw
-            # no jump in the return (a 5 m step that ended was given back as
-            # -5 m, the output at 'nominal' 5 m off for the rest of the flight).
+            # Nor when an aux channel that ran without the baro (the INS at fault
+            # too, so nothing rebased on it) reads the baro nearer its level from
+            # before than that level plus the steps: the steps have gone back,
+            # though the gate, anchored on that channel, saw no jump in the return
+            # (a 5 m step that ended was given back as -5 m, the output at
+            # 'nominal' 5 m off for the rest of the flight).
             since = (self.baro_excluded_us or t) - int(1e6 * (self.m.baro_jump_confirm_s
                                                               + self.m.baro_jump_settle_s + 1.0))
             steps = [s for s in self.baro_steps if s[0] >= since]
             if steps:
                 total = sum(s[1] for s in steps)
                 var = sum(s[2] * s[2] for s in steps)
-                if all(s[3] for s in steps) and not vouched:
+                gone = seen_m is not None and abs(seen_m) < abs(seen_m - total)
+                if all(s[3] for s in steps) and not gone:
                     bank.shift_baro_level(BARO, total, var)
                 else:
                     bank.shift_baro_level(BARO, 0.0, var)
