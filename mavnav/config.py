@@ -524,6 +524,11 @@ class MonitorConfig(_Section):
     # sample to the next (past the gate at the row's noise) waits up to this much
     # longer, and is no step if it never settles.
     baro_jump_settle_s: float = Field(1.0, ge=0)
+    # A step is given back at a readmission with no aux channel only if it was
+    # measured from a level no test had doubted for this long before its jump
+    # opened (the baro/Doppler window): a baro that was in caution while another
+    # source took the blame had its ramp followed, and its snapping back is no step.
+    baro_step_trust_s: float = Field(10.0, ge=0)
     # The clean samples a jump is measured from: the median of this many, each
     # carried to the jump's time by the INS (one noisy sample is no reference).
     baro_jump_reference_samples: int = Field(5, ge=1)

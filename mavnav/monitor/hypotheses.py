@@ -227,6 +227,7 @@ class HypothesisLogic:
         # channel to rebase on comes back at
         self.baro_steps: deque = deque(maxlen=32)
         self.baro_excluded_us: Optional[int] = None
+        self.baro_step_trust_us = int(m.baro_step_trust_s * 1e6)
         # ramp onsets against the INS: the series, and each one's measured kink scatter
         keys = ("gnss-baro", "gnss-ins", "rangefinder-baro", "rangefinder-ins", "baro-ins")
         self.kink = {k: KinkSeries(m.kink_window_s) for k in keys}
@@ -691,7 +692,11 @@ class HypothesisLogic:
                 # (and whether it is measured from a level no test doubted: a jump
                 # that opens while the baro is already in caution or out measures
                 # from a level the channel may have followed along with the fault)
-                self.jump = [t, size, sd, size, 0, ref, self.trackers[BARO_INS_S].state == "nominal"]
+                # (and for baro_step_trust_s: a baro in caution while another source took
+                # the blame had its ramp followed by the channel before that source went out)
+                trk = self.trackers[BARO_INS_S]
+                trusted = trk.state == "nominal" and t - trk.since_us >= self.baro_step_trust_us
+                self.jump = [t, size, sd, size, 0, ref, trusted]
             elif not reject:
                 # of the last OFFSET_SEARCH_SAMPLES, the last baro_jump_reference_samples
                 # that are baro_jump_confirm_s old: the first that many found walking back
@@ -1369,10 +1374,17 @@ class HypothesisLogic:
 
     # ------------------------------------------------------------------ readmission
 
-    def _others_fused(self, exclude: int) -> Optional[tuple[float, float]]:
+    def _others_fused(self, exclude: int, t: int) -> Optional[tuple[float, float]]:
+        """The height the other channels hold, each only where its own sensor
+        does (``_available``): a rangefinder channel on a flight with no
+        rangefinder, or one coasting out of range, is one more baro+INS channel,
+        not a second witness (it had held the true height beside a baro+INS
+        channel shifted 10 m, and a GNSS 12 m below the output was readmitted
+        on their average and re-initialised onto the shifted one)."""
         bank = self.bank
+        avail = self._available(t)
         idx = [c for c, n in ((GNSS, GNSS_S), (RNG, RANGEFINDER_S), (BARO, BARO_INS_S))
-               if c != exclude and n not in self.excluded and bank.P[c, 0, 0] <= self.m.max_channel_sigma_m ** 2]
+               if c != exclude and n not in self.excluded and avail[c]]
         if not idx:
             return None
         h, s, _ = fuse_heights([bank.x[c, 0] for c in idx], bank.height_cov(idx), True)
@@ -1395,7 +1407,7 @@ class HypothesisLogic:
             if self.last_seen_us[c] is not None and t - self.last_seen_us[c] > self.stale_us[c]:
                 self.consistent_since[name] = None
             return None
-        ref = self._others_fused(c)
+        ref = self._others_fused(c, t)
         if ref is None:
             return None
         z, sigma = raw
