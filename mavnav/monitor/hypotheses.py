@@ -228,6 +228,7 @@ class HypothesisLogic:
         self.baro_steps: deque = deque(maxlen=32)
         self.baro_excluded_us: Optional[int] = None
         self.baro_step_trust_us = int(m.baro_step_trust_s * 1e6)
+        self.baro_readmitted_us: Optional[int] = None
         # ramp onsets against the INS: the series, and each one's measured kink scatter
         keys = ("gnss-baro", "gnss-ins", "rangefinder-baro", "rangefinder-ins", "baro-ins")
         self.kink = {k: KinkSeries(m.kink_window_s) for k in keys}
@@ -694,8 +695,11 @@ class HypothesisLogic:
                 # from a level the channel may have followed along with the fault)
                 # (and for baro_step_trust_s: a baro in caution while another source took
                 # the blame had its ramp followed by the channel before that source went out)
+                # (a readmission set the baro's level against the INS: trusted from there,
+                # so that a step's return right after it still cancels the step)
                 trk = self.trackers[BARO_INS_S]
-                trusted = trk.state == "nominal" and t - trk.since_us >= self.baro_step_trust_us
+                trusted = trk.state == "nominal" and (t - trk.since_us >= self.baro_step_trust_us
+                                                      or trk.since_us == self.baro_readmitted_us)
                 self.jump = [t, size, sd, size, 0, ref, trusted]
             elif not reject:
                 # of the last OFFSET_SEARCH_SAMPLES, the last baro_jump_reference_samples
@@ -1459,6 +1463,7 @@ class HypothesisLogic:
         self.excluded.discard(BARO_INS_S)
         self.rejections[BARO_INS_S].clear()
         self._rebase_baro(t, aux=not self.ins_excluded)
+        self.baro_readmitted_us = t
         bank.baro_on[:] = True  # differencing restarts in the aux channels
         # the aux channels' sequential tests summed innovations their channel made
         # while it rested on the faulty source: that evidence is spent
