@@ -220,3 +220,30 @@ def test_a_steps_return_soon_after_the_baro_came_back_cancels_the_step():
     after = np.isfinite(h) & (t > back[1]) & (t < back[1] + 20.0)
     assert after.sum() > 50
     assert np.max(np.abs(h - h0)[after]) < 0.5
+
+
+@pytest.mark.parametrize("given_back,step,shifted", [((4.95, 0.09), -5.0, True), ((0.0, 0.0), -5.0, False),
+                                                    ((4.95, 0.09), -2.0, False)],
+                         ids=["returns", "nothing_given_back", "not_its_size"])
+def test_the_return_of_a_step_given_back_cancels_it_however_its_jump_was_measured(given_back, step, shifted):
+    """With no aux channel, a readmission gives back only steps measured from
+    a level no test doubted; but a jump that cancels what an earlier
+    readmission gave back (within the gate at their sigmas) is that step's
+    return, however it was measured: a caution of the flight's own 1 s before
+    a 5 m step ended had left the step in the output."""
+    from mavnav.bank import BARO as BARO_C
+    from mavnav.monitor.hypotheses import HypothesisLogic
+
+    cfg = config_from_dict({})
+    bank = ChannelBank(Model.from_config(cfg))
+    logic = HypothesisLogic(cfg, bank)
+    t = 100_000_000
+    bank.start(0, 1.0)
+    logic.start(0, 0)
+    logic.last_baro_m, logic.last_baro_us, logic.baro_excluded_us = 1.0, t, t - 10_000_000
+    logic.baro_steps.append((t - 9_000_000, step, 0.3, False))  # measured from a doubted level
+    logic.baro_given_back = given_back
+    h0 = bank.x[BARO_C, H]
+    logic._rebase_baro(t, aux=False)
+    assert bank.x[BARO_C, H] - h0 == pytest.approx(-step if shifted else 0.0)
+    assert logic.baro_given_back == ((0.0, 0.0) if shifted else given_back)

@@ -229,6 +229,9 @@ class HypothesisLogic:
         self.baro_excluded_us: Optional[int] = None
         self.baro_step_trust_us = int(m.baro_step_trust_s * 1e6)
         self.baro_readmitted_us: Optional[int] = None
+        self.baro_level_set = False  # that readmission set the baro's level (else: its own)
+        # what readmissions with no aux channel have given back of the baro's steps, and its variance
+        self.baro_given_back = (0.0, 0.0)
         # ramp onsets against the INS: the series, and each one's measured kink scatter
         keys = ("gnss-baro", "gnss-ins", "rangefinder-baro", "rangefinder-ins", "baro-ins")
         self.kink = {k: KinkSeries(m.kink_window_s) for k in keys}
@@ -695,11 +698,14 @@ class HypothesisLogic:
                 # from a level the channel may have followed along with the fault)
                 # (and for baro_step_trust_s: a baro in caution while another source took
                 # the blame had its ramp followed by the channel before that source went out)
-                # (a readmission set the baro's level against the INS: trusted from there,
-                # so that a step's return right after it still cancels the step)
+                # (a readmission that set the baro's level, on an aux channel or by giving
+                # back its steps, is trusted from there, so that a step's return right after
+                # it still cancels the step; one that left the baro at its own level is not,
+                # so that the return of a step left in it is not given back either)
                 trk = self.trackers[BARO_INS_S]
                 trusted = trk.state == "nominal" and (t - trk.since_us >= self.baro_step_trust_us
-                                                      or trk.since_us == self.baro_readmitted_us)
+                                                      or (trk.since_us == self.baro_readmitted_us
+                                                          and self.baro_level_set))
                 self.jump = [t, size, sd, size, 0, ref, trusted]
             elif not reject:
                 # of the last OFFSET_SEARCH_SAMPLES, the last baro_jump_reference_samples
@@ -1500,6 +1506,7 @@ class HypothesisLogic:
             bank.rebase_baro_bias(c, self.last_baro_m, noise)
             if best is None or bank.P[c, 0, 0] < bank.P[best, 0, 0]:
                 best = c
+        self.baro_level_set = best is not None
         if best is not None:
             bank.reinit_from(BARO, best)
             bank.baro_prev[BARO] = math.nan  # its differencing restarts with the aux channels'
@@ -1526,10 +1533,21 @@ class HypothesisLogic:
                 total = sum(s[1] for s in steps)
                 var = sum(s[2] * s[2] for s in steps)
                 gone = seen_m is not None and abs(seen_m) < abs(seen_m - total)
-                if all(s[3] for s in steps) and not gone:
+                # the return of what an earlier readmission gave back cancels it, however
+                # its jump was measured (a caution of the flight's own a second before a
+                # 5 m step ended left the step in the output)
+                back, back_var = self.baro_given_back
+                returns = (back != 0.0 and abs(total + back) <= math.sqrt(self.gate * (var + back_var))
+                           and not gone)
+                if (all(s[3] for s in steps) and not gone) or returns:
                     bank.shift_baro_level(BARO, total, var)
+                    self.baro_level_set = True
+                    # (a return settles what was given back)
+                    self.baro_given_back = (0.0, 0.0) if returns else (back + total, back_var + var)
                 else:
                     bank.shift_baro_level(BARO, 0.0, var)
+        if best is not None:
+            self.baro_given_back = (0.0, 0.0)  # the level is the aux channels' now
         self.baro_steps.clear()
 
     def _ins_residual(self) -> Optional[tuple]:
