@@ -86,6 +86,7 @@ _BARO_AND_INS = frozenset((BARO_S, INS_S))
 _INS_ONLY = frozenset((INS_S,))
 _BARO_ONLY = frozenset((BARO_S,))
 _NOTHING: frozenset = frozenset()
+_DOUBTED = ("caution", "alarm")
 
 
 def _last(q: deque, n: int) -> list:
@@ -229,6 +230,7 @@ class HypothesisLogic:
         self.baro_excluded_us: Optional[int] = None
         self.baro_step_trust_us = int(m.baro_step_trust_s * 1e6)
         self.baro_readmitted_us: Optional[int] = None
+        self.baro_doubted_us: Optional[int] = None  # the last epoch the baro was in caution or alarm
         self.baro_level_set = False  # that readmission set the baro's level (else: its own)
         # what readmissions with no aux channel have given back of the baro's steps, and its variance
         self.baro_given_back = (0.0, 0.0)
@@ -685,6 +687,8 @@ class HypothesisLogic:
         m = self.m
         ins = self.ins
         j = self.jump
+        if self.trackers[BARO_INS_S].state in _DOUBTED:
+            self.baro_doubted_us = t
         if j is None:
             before = self.before_jump
             keep_us = 1e6 * max(1.0, 2 * m.baro_jump_confirm_s)
@@ -703,7 +707,8 @@ class HypothesisLogic:
                 # it still cancels the step; one that left the baro at its own level is not,
                 # so that the return of a step left in it is not given back either)
                 trk = self.trackers[BARO_INS_S]
-                trusted = trk.state == "nominal" and (t - trk.since_us >= self.baro_step_trust_us
+                doubted = self.baro_doubted_us
+                trusted = trk.state == "nominal" and (doubted is None or t - doubted >= self.baro_step_trust_us
                                                       or (trk.since_us == self.baro_readmitted_us
                                                           and self.baro_level_set))
                 self.jump = [t, size, sd, size, 0, ref, trusted]
