@@ -697,15 +697,15 @@ class HypothesisLogic:
             if reject and before:
                 ref = tuple(_last(before, m.baro_jump_reference_samples))
                 size = b - self._carried(ref, t)
-                # (and whether it is measured from a level no test doubted: a jump
-                # that opens while the baro is already in caution or out measures
-                # from a level the channel may have followed along with the fault)
-                # (and for baro_step_trust_s: a baro in caution while another source took
-                # the blame had its ramp followed by the channel before that source went out)
-                # (a readmission that set the baro's level, on an aux channel or by giving
-                # back its steps, is trusted from there, so that a step's return right after
-                # it still cancels the step; one that left the baro at its own level is not,
-                # so that the return of a step left in it is not given back either)
+                # and whether it is measured from a level no test doubted: a jump that
+                # opens while the baro is in caution or out, or within baro_step_trust_s
+                # of it (a baro in caution while another source took the blame has had its
+                # ramp followed by the channel), measures from a level the channel may
+                # have followed along with the fault. A readmission that set the baro's
+                # level (on an aux channel, or giving back its steps) is such a level at
+                # once, so that a step's return right after it still cancels the step;
+                # one that left the baro at its own level is not, so that the return of a
+                # step left in it is not given back either.
                 trk = self.trackers[BARO_INS_S]
                 doubted = self.baro_doubted_us
                 trusted = trk.state == "nominal" and (doubted is None or t - doubted >= self.baro_step_trust_us
