@@ -32,6 +32,7 @@ from mavnav.audit import audit_file  # noqa: E402
 from mavnav.config import config_from_dict  # noqa: E402
 from mavnav.errors import MavnavError  # noqa: E402
 
+
 def _flight(args):
     path, margin_m = args
     sink = AwaySink()

@@ -1515,6 +1515,7 @@ class HypothesisLogic:
         if best is not None:
             bank.reinit_from(BARO, best)
             bank.baro_prev[BARO] = math.nan  # its differencing restarts with the aux channels'
+            self.baro_given_back = (0.0, 0.0)  # the level is the aux channels' now
         else:
             # nothing held the height without the baro: the baro+INS channel
             # followed the baro, so its level moves back by the steps the baro
@@ -1551,8 +1552,6 @@ class HypothesisLogic:
                     self.baro_given_back = (0.0, 0.0) if returns else (back + total, back_var + var)
                 else:
                     bank.shift_baro_level(BARO, 0.0, var)
-        if best is not None:
-            self.baro_given_back = (0.0, 0.0)  # the level is the aux channels' now
         self.baro_steps.clear()
 
     def _ins_residual(self) -> Optional[tuple]:
