@@ -1583,18 +1583,36 @@ class HypothesisLogic:
 
     # ------------------------------------------------------------------ feedback
 
+    def _agrees_with_baro(self, c: int, k: float) -> bool:
+        """Channel ``c``'s height within ``k`` sigma of the baro channel's
+        (the sigma of their difference, cross terms included)."""
+        bank = self.bank
+        (paa, pab), (_, pbb) = bank.height_cov([c, BARO])
+        var = paa + pbb - 2.0 * pab
+        d = bank.x[c, 0] - bank.x[BARO, 0]
+        return d * d <= k * k * var if var > 0.0 else d == 0.0
+
     def _feedback(self, t: int, avail) -> None:
-        """Correct the reference channel from channels nominal for validate_s:
-        weak (``feedback_inflation``), rate-limited, never into a suspect baro."""
+        """Correct the reference channel from channels nominal for validate_s
+        and clearly consistent with it now: weak (``feedback_inflation``),
+        rate-limited, never into a suspect baro. A channel that has begun to
+        separate, before any test calls it (a frozen rangefinder in a
+        descent, 0.7 m and 3 sigma from the baro channel while still
+        nominal), would carry its sensor's fault into the baro channel, and
+        the fused height would follow with no separation left to show it
+        (the simulated frozen descent: 1.2 s of error beyond the protection
+        level)."""
         if t - self.last_feedback_us < self.feedback_us:
             return
         self.last_feedback_us = t
         if BARO_INS_S in self.excluded or self.trackers[BARO_INS_S].state != "nominal":
             return
+        bank = self.bank
+        limit = self.m.clear_frac * self.k_cmp
         src = [c for c, name in AUX if avail[c] and self.trackers[name].state == "nominal"
-               and t - self.trackers[name].since_us >= self.validate_us and not self._warm(name, t)]
+               and t - self.trackers[name].since_us >= self.validate_us and not self._warm(name, t)
+               and self._agrees_with_baro(c, limit)]
         if not src:
             return
-        bank = self.bank
         _, _, w = fuse_heights([bank.x[c, 0] for c in src], bank.height_cov(src), True)
         bank.feedback(BARO, list(src), np.asarray(w), inflation=self.m.feedback_inflation)
