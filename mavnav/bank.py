@@ -374,6 +374,7 @@ class ChannelBank:
         self.baro_prev = np.full(N_CH, math.nan)
         self.t_us: Optional[int] = None
         self.start_baro_bias_m2: Optional[float] = None
+        self.start_vel_m2ps2: Optional[float] = None
         self._inn = np.zeros((N_CH, 2))
         self._sdiag = np.zeros((N_CH, 2))
         self._s12 = np.zeros(N_CH)
@@ -402,16 +403,23 @@ class ChannelBank:
     def started(self) -> bool:
         return self.t_us is not None
 
-    def start(self, t_us: int, baro_m: float, baro_bias_m2: Optional[float] = None) -> None:
+    def start(self, t_us: int, baro_m: float, baro_bias_m2: Optional[float] = None,
+              vel_m2ps2: Optional[float] = None) -> None:
         """Initialise every channel from the same prior: their errors start identical.
-        ``baro_bias_m2`` replaces the prior variance of the baro bias ``dH`` for
-        this start only (a reference taken at the datum ties it closer); a
-        channel re-initialised later in the flight takes the model's prior."""
+        ``baro_bias_m2`` and ``vel_m2ps2`` replace the prior variances of the baro
+        bias ``dH`` and the vertical speed for this start only (a start on the
+        ground at the datum: the reference ties the baro closer, and the vehicle
+        is at rest); a channel re-initialised later in the flight takes the
+        model's prior."""
         model = self.model
-        self.start_baro_bias_m2 = baro_bias_m2  # a start again within the warm-up takes the same prior
-        if baro_bias_m2 is not None:
+        # a start again within the warm-up takes the same priors
+        self.start_baro_bias_m2, self.start_vel_m2ps2 = baro_bias_m2, vel_m2ps2
+        if baro_bias_m2 is not None or vel_m2ps2 is not None:
             p0 = list(model.p0_diag)
-            p0[DH] = baro_bias_m2
+            if baro_bias_m2 is not None:
+                p0[DH] = baro_bias_m2
+            if vel_m2ps2 is not None:
+                p0[VZ] = vel_m2ps2
             model = dataclasses.replace(model, p0_diag=tuple(p0))
         for c in range(N_CH):
             self.reinit(c, t_us, baro_m, model)

@@ -159,6 +159,13 @@ class InitialCovariance(_Section):
     # own noise over that window (white 0.1-0.45 m and u 0.2 m, correlation 2 s:
     # about 0.2 m); 0.3 m keeps a margin. Adaptive mode only; paper mode keeps P0.
     baro_bias_at_datum_m2: float = Field(0.09, gt=0)
+    # The vertical speed's prior at such a start: the vehicle is on the ground,
+    # at rest (0.5 m/s covers a take-off already under way within at_datum_max_m).
+    # With vel_m2ps2 (4.5 m/s) the first differenced baro row, its sample-to-sample
+    # noise over 0.04 s, set the speed to 4-6 m/s on simulated ground starts, the
+    # next rows could not take it back within 3 s, and the output sat 3 m below
+    # the ground at 'nominal' (session 19). Adaptive mode only.
+    vel_at_datum_m2ps2: float = Field(0.25, gt=0)
     acc_bias_m2ps4: float = Field(0.01, gt=0)
 
 

@@ -6,7 +6,12 @@ sample after boot (an Erle board's baro settling read as 22 m/s) made every
 later row a 25-48 sigma innovation: gated, the channels coasted on the INS
 away from the baro until their sigma took them out of the output for the
 rest of the flight. Within the warm-up, rows gated ``start_restart_rows`` in
-a row start the filters again (``monitor.start_restarts_max`` times)."""
+a row start the filters again (``monitor.start_restarts_max`` times).
+
+dkla's log starts on the ground at its datum, where the filters now start at
+rest (``filter.p0.vel_at_datum_m2ps2``) and the glitch's row is gated at
+once; the restart is tested with the diffuse speed a start away from the
+datum (in flight) still takes, and the start at rest on its own."""
 
 from __future__ import annotations
 
@@ -23,6 +28,14 @@ from mavnav.sinks.base import Sink
 from tests.support.paths import SHARED_FLIGHTLOGS
 
 DKLA = SHARED_FLIGHTLOGS / "dkla_log171.bin"  # ArduCopter 3.3, baro at 10 Hz
+DIFFUSE = {"filter": {"p0": {"vel_at_datum_m2ps2": 20.0}}}  # the speed prior of a start in flight
+
+
+def _glitch(cfg) -> str:
+    """The second baro sample alone, read 2.4 m off."""
+    first = [s.t_us * 1e-6 for s in open_log(str(DKLA), cfg.ingest) if isinstance(s, BaroHeight)][:3]
+    return (f"baro_step:magnitude=2.4,onset={(first[0] + first[1]) / 2:.6f},"
+            f"duration={(first[2] - first[0]) / 2:.6f}")
 
 
 class _Heights(Sink):
@@ -49,7 +62,7 @@ def _fly(cfg, spec=None):
 @pytest.mark.skipif(not DKLA.exists(), reason="no shared flight logs")
 @pytest.mark.parametrize("magnitude", [2.4, -2.4])
 def test_a_glitch_on_the_second_baro_sample_starts_the_filters_again(magnitude):
-    cfg = config_from_dict({})
+    cfg = config_from_dict(DIFFUSE)
     first = [s.t_us * 1e-6 for s in open_log(str(DKLA), cfg.ingest) if isinstance(s, BaroHeight)][:3]
     # the second baro sample alone, read `magnitude` off
     spec = (f"baro_step:magnitude={magnitude},onset={(first[0] + first[1]) / 2:.6f},"
@@ -57,7 +70,7 @@ def test_a_glitch_on_the_second_baro_sample_starts_the_filters_again(magnitude):
     t0, h0 = _fly(cfg)
     late = None
     for restarts, bound in ((cfg.monitor.start_restarts_max, 0.5), (0, None)):
-        c = config_from_dict({"monitor": {"start_restarts_max": restarts}})
+        c = config_from_dict({**DIFFUSE, "monitor": {"start_restarts_max": restarts}})
         t, h = _fly(c, spec)
         d = np.abs(h - np.interp(t, t0, h0))
         late = (t > first[0] + 3.0) & np.isfinite(np.interp(t, t0, h0))
@@ -73,10 +86,25 @@ def test_a_glitch_on_the_second_baro_sample_starts_the_filters_again(magnitude):
 def test_the_audit_says_when_the_filters_started_again():
     from mavnav.audit import audit_file
 
-    cfg = config_from_dict({})
-    first = [s.t_us * 1e-6 for s in open_log(str(DKLA), cfg.ingest) if isinstance(s, BaroHeight)][:3]
-    spec = f"baro_step:magnitude=2.4,onset={(first[0] + first[1]) / 2:.6f},duration={(first[2] - first[0]) / 2:.6f}"
+    cfg = config_from_dict(DIFFUSE)
+    spec = _glitch(cfg)
     said = [n for n in audit_file(DKLA, cfg, faults=[spec])["notes"] if "started again" in n]
     assert said == ["filters started again 1 time(s) within the warm-up: their first baro difference was a "
                     "glitch, and every baro row after it was gated"]
     assert not [n for n in audit_file(DKLA, cfg)["notes"] if "started again" in n]
+
+
+@pytest.mark.realdata
+@pytest.mark.skipif(not DKLA.exists(), reason="no shared flight logs")
+def test_a_start_at_rest_gates_the_glitch_without_starting_again():
+    from mavnav.audit import audit_file
+
+    cfg = config_from_dict({})
+    spec = _glitch(cfg)
+    t0, h0 = _fly(cfg)
+    t, h = _fly(cfg, spec)
+    first = [s.t_us * 1e-6 for s in open_log(str(DKLA), cfg.ingest) if isinstance(s, BaroHeight)][0]
+    late = (t > first + 3.0) & np.isfinite(np.interp(t, t0, h0))
+    assert np.all(np.isfinite(h[late]))
+    assert np.max(np.abs(h - np.interp(t, t0, h0))[late]) < 0.5
+    assert not [n for n in audit_file(DKLA, cfg, faults=[spec])["notes"] if "started again" in n]

@@ -187,7 +187,10 @@ class Monitor:
         out = []
         for ep in eps:
             if isinstance(ep, EpochStart):
-                self.bank.start(ep.t_us, ep.baro_m, self._start_baro_bias_m2())
+                at_datum = self._baro_at_datum and self.mcfg.mode != "paper"
+                p0 = self.cfg.filter.p0
+                self.bank.start(ep.t_us, ep.baro_m, p0.baro_bias_at_datum_m2 if at_datum else None,
+                                p0.vel_at_datum_m2ps2 if at_datum else None)
                 self.logic.start(ep.t_us, self.boot)
                 if self.input is None:
                     self.input = SourceTracker(INPUT, ep.t_us, self.boot)
@@ -195,13 +198,6 @@ class Monitor:
                 continue
             out.append(self._epoch(ep))
         return out
-
-    def _start_baro_bias_m2(self) -> Optional[float]:
-        """The baro bias prior of a start on a reference taken at the datum
-        (adaptive mode; paper mode keeps the paper's P0)."""
-        if self._baro_at_datum and self.mcfg.mode != "paper":
-            return self.cfg.filter.p0.baro_bias_at_datum_m2
-        return None
 
     def _on_reboot(self, s: Reboot) -> None:
         # Close the previous boot's alarms honestly: everything restarts.

@@ -375,7 +375,7 @@ class HypothesisLogic:
         self.start_rejects = self.start_rejects + 1 if reject else 0
         if self.start_rejects < self.m.start_restart_rows or self.restarts >= self.m.start_restarts_max:
             return False
-        self.bank.start(t, baro_m, self.bank.start_baro_bias_m2)
+        self.bank.start(t, baro_m, self.bank.start_baro_bias_m2, self.bank.start_vel_m2ps2)
         self.restarts += 1
         self.glitch_restarts += 1
         self.start_rejects = 0

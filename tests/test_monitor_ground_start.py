@@ -1,0 +1,52 @@
+"""A start on the ground at the datum takes the vertical speed's prior of a
+vehicle at rest (``filter.p0.vel_at_datum_m2ps2``).
+
+With the general prior (4.5 m/s) the first differenced baro row, the baro's
+sample-to-sample noise over 0.04 s, set the speed to 4-6 m/s on simulated
+ground starts; the rows after it could not take it back for three seconds and
+the fused height sat 2.5-3.3 m below the ground at 'nominal' while the baro
+and the GNSS read it within 0.4 m (the grid flights of bench/integrity.py,
+seeds 8 and 10, shipped model)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bench import integrity as I
+from bench import scoremetrics as sm
+from mavnav.config import SensorsConfig, config_from_dict
+from mavnav.pipeline import run
+from mavnav.sim import scenario_from_dict, simulate
+
+pytestmark = pytest.mark.slow
+
+
+def _fly(seed: int, p0: dict):
+    b = I.grid_flight(seed)
+    res = simulate(scenario_from_dict(b), seed=seed)
+    sink = I._Collect()
+    run(I.ingest(res.tlog), config_from_dict({"sensors": SensorsConfig().model_dump(), "filter": {"p0": p0}}),
+        [sink])
+    t_truth = np.asarray(res.truth["t_s"], dtype=float)
+    h_truth = np.asarray(res.truth["true_height_ref_m"], dtype=float)
+    usable = np.isin(np.asarray(sink.overall), ["nominal", "caution"])
+    err = np.abs(np.asarray(sink.h) - np.interp(sink.t, t_truth, h_truth))
+    first = np.asarray(sink.t) < 5.0
+    return float(np.max(err[usable & first], initial=0.0)), sm.misleading(
+        sink.t, sink.h, sink.pl, sink.overall, t_truth, h_truth)[0]
+
+
+@pytest.mark.parametrize("seed", [8, 10])
+def test_a_ground_start_does_not_take_its_speed_from_baro_noise(seed):
+    """No hazardous output (3 m while usable) in the first 5 s, and none
+    beyond the protection level in the flight. (Seed 8's own baro wanders
+    2.4 m on the ground in its first 3 s, and the output with it, to 2.3 m.)"""
+    err_m, misleading_s = _fly(seed, {})
+    assert err_m < 3.0
+    assert misleading_s == 0.0
+
+
+def test_with_the_general_prior_the_start_is_hazardous():
+    err_m, _ = _fly(10, {"vel_at_datum_m2ps2": 20.0})
+    assert err_m > 3.0
