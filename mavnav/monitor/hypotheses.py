@@ -45,7 +45,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from ..bank import BARO, GNSS, RNG, ChannelBank
+from ..bank import BARO, GNSS, PAIRS, RNG, ChannelBank
 from ..channel import EpochInputs
 from ..config import Config
 # the sensor words (the names GNSS, RNG, BARO are the bank's channel indices here)
@@ -53,7 +53,7 @@ from ..sensors import BARO as BARO_S, BARO_INS as BARO_INS_S, GNSS as GNSS_S, IN
 from ..sensors import RANGEFINDER as RANGEFINDER_S
 from .baronoise import BaroNoiseMeter
 from .cusum import Cusum, threshold_for
-from .decision import Decision, pair_reports_scaled
+from .decision import Decision, diff_sigmas, pair_reports_scaled
 from .doppler import MIN_SPAN_FRAC, DopplerCheck, Exceedance, InsDopplerCheck
 from .drift import DriftCheck
 from .fusion import fuse_heights
@@ -1589,15 +1589,6 @@ class HypothesisLogic:
 
     # ------------------------------------------------------------------ feedback
 
-    def _agrees_with_baro(self, c: int, k: float) -> bool:
-        """Channel ``c``'s height within ``k`` sigma of the baro channel's
-        (the sigma of their difference, cross terms included)."""
-        bank = self.bank
-        (paa, pab), (_, pbb) = bank.height_cov([c, BARO])
-        var = paa + pbb - 2.0 * pab
-        d = bank.x[c, 0] - bank.x[BARO, 0]
-        return d * d <= k * k * var if var > 0.0 else d == 0.0
-
     def _feedback(self, t: int, avail) -> None:
         """Correct the reference channel from channels nominal for validate_s
         and clearly consistent with it now: weak (``feedback_inflation``),
@@ -1614,10 +1605,13 @@ class HypothesisLogic:
         if BARO_INS_S in self.excluded or self.trackers[BARO_INS_S].state != "nominal":
             return
         bank = self.bank
+        # each aux channel's height within clear_frac of the comparison's threshold
+        # of the baro channel's (the sigma of their difference, cross terms included)
         limit = self.m.clear_frac * self.k_cmp
+        sd = diff_sigmas(bank)
         src = [c for c, name in AUX if avail[c] and self.trackers[name].state == "nominal"
                and t - self.trackers[name].since_us >= self.validate_us and not self._warm(name, t)
-               and self._agrees_with_baro(c, limit)]
+               and abs(bank.x[c, 0] - bank.x[BARO, 0]) <= limit * sd[PAIRS.index((c, BARO))]]
         if not src:
             return
         _, _, w = fuse_heights([bank.x[c, 0] for c in src], bank.height_cov(src), True)
