@@ -335,6 +335,7 @@ class AdaptiveFeatures(_Section):
     # sample-to-sample innovation changes, not the innovations' own sigma
     # (consecutive innovations share the channel's error: their change is small)
     sudden_jump_measured: bool = True
+    sudden_jump_persist: bool = True
 
 
 class MonitorConfig(_Section):
@@ -604,6 +605,17 @@ class MonitorConfig(_Section):
     sudden_jump_memory_s: float = Field(30.0, gt=0)
     sudden_jump_min_samples: int = Field(20, ge=5)
     sudden_jump_sharpen_max: float = Field(4.0, ge=1)
+    # A clean jump that holds (features.sudden_jump_persist): past the jump
+    # threshold from the previous sample and from where the stream stood (the
+    # median of its last sudden_jump_level_samples innovations), and every later
+    # sample still at least sudden_jump_persist_frac of the jump from there,
+    # for sudden_jump_persist_s and sudden_jump_persist_samples samples, is a
+    # step of the sensor (monitor/jumps.py).
+    sudden_jump_persist_s: float = Field(0.2, gt=0)
+    sudden_jump_persist_frac: float = Field(0.5, gt=0, le=1)
+    sudden_jump_persist_samples: int = Field(2, ge=1)
+    # where the stream stood before a jump: the median of its last this many innovations
+    sudden_jump_level_samples: int = Field(5, ge=3)
     residual_scale_min: float = Field(0.5, gt=0, le=1)
     residual_scale_max: float = Field(5.0, ge=1)
     # the largest lag-one correlation the aux innovation scale believes (its

@@ -58,6 +58,7 @@ from .doppler import MIN_SPAN_FRAC, DopplerCheck, Exceedance, InsDopplerCheck
 from .drift import DriftCheck
 from .fusion import fuse_heights
 from .inscheck import InsBaroCheck
+from .jumps import Jump, new_jump
 from .kink import KinkSeries, MeanSquare, isolate, kink_fit, onsets
 from .levels import chi2_gate, normal_k
 from .protection import protection_level
@@ -145,6 +146,7 @@ class HypothesisLogic:
         self.coast_us = int(m.coast_reinit_s * 1e6)
         self.hold_restart_us = int(m.hold_restart_s * 1e6)
         self.warmup_us = int(m.warmup_s * 1e6)
+        self.persist_us = int(m.sudden_jump_persist_s * 1e6)
         self.kink_margin = chi2_gate(m.kink_isolation_prob)
         self.t0_us = 0
         self.glitch_restarts = 0  # starts again on a baro glitch, over this logic's life (reported by the audit)
@@ -198,13 +200,15 @@ class HypothesisLogic:
         self.last_r_m = {GNSS_S: 0.0, RANGEFINDER_S: 0.0}
         self.last_post_r_m = {GNSS_S: 0.0, RANGEFINDER_S: 0.0}  # the last innovation less what the channel took up
         self.r_avg_m = {GNSS_S: 0.0, RANGEFINDER_S: 0.0}
+        # the last few innovations of each aux stream: where it stood before a jump
+        self.recent_r_m = {s: deque(maxlen=m.sudden_jump_level_samples) for s in (GNSS_S, RANGEFINDER_S)}
         self.last_sd_m = {GNSS_S: math.inf, RANGEFINDER_S: math.inf}
         self.level_since: dict[int, Optional[int]] = {GNSS: None, RNG: None}
         # the level statistics (r / sigma) while the test is clean, for the second
         # difference over level_scale_lag_s the scale learns from
         self.level_snaps: dict[int, LagSeries] = {GNSS: LagSeries(m.level_scale_lag_s),
                                                   RNG: LagSeries(m.level_scale_lag_s)}
-        self.sudden: dict[str, tuple] = {}  # name -> (t_us, baro clean then, jump m)
+        self.sudden: dict[str, Jump] = {}  # name -> its latest sudden jump
         # the measured scatter of each aux stream's sample-to-sample innovation change
         self.jump_scale = {s: MedianScale(m.sudden_jump_memory_s, m.sudden_jump_min_samples,
                                           m.median_scale_update_s) for s in (GNSS_S, RANGEFINDER_S)}
@@ -429,6 +433,7 @@ class HypothesisLogic:
         # the failure's size: the innovation's recent mean (one sample is noise)
         w = 1.0 - math.exp(-max(t - (last or t), 0) * 1e-6 / self.m.fail_size_tau_s) if last is not None else 1.0
         self.r_avg_m[name] = r if absent else self.r_avg_m[name] + w * (r - self.r_avg_m[name])
+        self.recent_r_m[name].append(r)
         self.last_sd_m[name] = sd
         # the gate at the innovations' measured scatter, never below the model's
         reject = self.f.innovation_gating and z * z > self.gate * max(1.0, self.scale[name].sd) ** 2
@@ -469,15 +474,35 @@ class HypothesisLogic:
         """A sudden change of the innovation while this epoch's baro row is
         clean: neither the baro nor the INS (whose errors are integrals) can
         make it."""
-        jump = abs(r - (self.last_post_r_m[name] if self.f.sudden_jump_measured else self.last_r_m[name]))
+        prev = self.last_post_r_m[name] if self.f.sudden_jump_measured else self.last_r_m[name]
+        jump = abs(r - prev)
         if jump != jump:
             return  # the channel started again since the last sample: nothing to jump from
+        held = self.sudden.get(name)
+        if held is not None and t > held.t_us:
+            held.follow(t, r, self.m.sudden_jump_persist_frac, self.persist_us, self.m.sudden_jump_persist_samples)
         js = self.jump_scale[name]
         scale = math.hypot(sd, self.last_sd_m[name])
         if self.f.sudden_jump_measured and js.sd is not None:
             scale = max(js.sd, scale / self.m.sudden_jump_sharpen_max)
-        if jump > math.sqrt(self.gate) * scale:
-            self.sudden[name] = (t, baro_z < self.m.clear_frac * math.sqrt(self.baro_gate), jump)
+        thr = math.sqrt(self.gate) * scale
+        if jump > thr:
+            clean = baro_z < self.m.clear_frac * math.sqrt(self.baro_gate)
+            if not self.f.sudden_jump_persist:
+                self.sudden[name] = new_jump(t, r, prev, jump, clean, can_hold=False)
+                return
+            # and from where the stream stood (the median of its last few
+            # innovations), by its measured scatter: the return from a
+            # one-sample spike jumps from the spike, and the chance jump of a
+            # drifting stream from its last sample only
+            recent = self.recent_r_m[name]
+            if len(recent) < self.m.sudden_jump_level_samples or js.sd is None:
+                return
+            level = statistics.median(recent)
+            if abs(r - level) > math.sqrt(self.gate) * js.sd:
+                # one noted while the channel warms up never holds: the verdicts
+                # are not heard then, and its level was still settling
+                self.sudden[name] = new_jump(t, r, level, jump, clean, can_hold=not self._warm(name, t))
         elif self.f.sudden_jump_measured:
             js.push(t, jump)
 
@@ -774,6 +799,7 @@ class HypothesisLogic:
         self.warm_until[name] = t + self.warmup_us
         self.last_accept_us[c] = t
         self.last_post_r_m[name] = math.nan
+        self.recent_r_m[name].clear()
 
     # ------------------------------------------------------------------ the tests
 
@@ -790,11 +816,13 @@ class HypothesisLogic:
         implicates = self._aux_implicates(c, name)
         label = LABEL[name]
         sudden = self._sudden_now(name, t)
-        if (self.f.innovation_gating and (rej >= m.alarm_rejections or stat > h)
-                and sudden is not None and sudden[1]):
+        if (self.f.innovation_gating and sudden is not None and sudden.clean
+                and (rej >= m.alarm_rejections or stat > h or self._step_held(sudden))):
+            why = (f"{rej} samples rejected in {m.window_s:g} s" if rej >= m.alarm_rejections or stat > h
+                   else f"held {(sudden.last_us - sudden.t_us) * 1e-6:.2f} s")
             return Verdict(f"{name} innovation", "fail", frozenset((name,)), stat=stat, threshold=h,
-                           text=f"{label} jumped {sudden[2]:.2f} m while the baro and INS stayed consistent; "
-                                f"{rej} samples rejected in {m.window_s:g} s", scale_m=sudden[2])
+                           text=f"{label} jumped {sudden.size_m:.2f} m while the baro and INS stayed consistent; "
+                                f"{why}", scale_m=sudden.size_m)
         if (self.f.innovation_gating and rej >= m.alarm_rejections) or stat > h:
             why = (f"{rej} {label} samples rejected in {m.window_s:g} s" if rej >= m.alarm_rejections
                    else f"{label} innovations drift {'up' if cs.sign > 0 else 'down'} (CUSUM {stat:.1f} > {h:.1f})")
@@ -834,10 +862,16 @@ class HypothesisLogic:
             return _WITH_BARO_INS[name] if self.ins_doubt else _WITH_BARO[name]
         return _WITH_INS[name]
 
-    def _sudden_now(self, name: str, t: int) -> Optional[tuple]:
+    def _step_held(self, sudden: Jump) -> bool:
+        """A jump that held: a step of the sensor. Only where the INS carries
+        the channel between samples (the IMU not slow): on a 9 Hz IMU the
+        prediction itself jumps by metres between samples (frs_motor_failure_hexa)."""
+        return self.f.sudden_jump_persist and sudden.step and self.slow_imu_hz is None
+
+    def _sudden_now(self, name: str, t: int) -> Optional[Jump]:
         """The sudden jump noted for this stream, while the rejection window still holds it."""
         sudden = self.sudden.get(name)
-        if sudden is not None and t - sudden[0] > self.rejections[name].length_us:
+        if sudden is not None and t - sudden.t_us > self.rejections[name].length_us:
             self.sudden.pop(name)
             return None
         return sudden
