@@ -4,9 +4,9 @@ An aux innovation that jumps from one sample to the next while the baro row
 is clean implicates the sensor alone: neither the baro nor the INS (whose
 errors are integrals) can make it. One jump is no fault: a spike is gone at
 the next sample and the gate has already refused it. A jump that *holds*
-(each later sample still, measured from the innovation before the jump, at
-least ``persist_frac`` of the jump the same way, for ``persist_s``) is a step
-of the sensor: the evidence a step's size against the model's sigma cannot
+(each later sample still, measured from where the stream stood before the
+jump, at least ``persist_frac`` of the jump the same way, for ``persist_s``)
+is a step of the sensor: the evidence a step's size against the model's sigma cannot
 give where the model is wide (a rangefinder's height-proportional term at
 35 m is 1 m, its sample-to-sample scatter 5 cm).
 
@@ -25,7 +25,7 @@ class Jump:
     clean: bool  # the baro row was clean then
     size_m: float  # |jump|
     sign: float  # +1 up, -1 down (innovation sense)
-    r_pre_m: float  # the innovation left before the jump
+    r_pre_m: float  # where the stream stood before the jump (the caller's level)
     last_us: int  # the latest sample that still held it
     samples: int = 0  # later samples that held it
     broken: bool = False  # a later sample gave it back before it held: a spike
