@@ -192,6 +192,10 @@ class Rejected:
     value_m: float = float("nan")
     min_m: float = float("nan")
     max_m: float = float("nan")
+    # a refused rangefinder reading's tilt, as the cosine of the sensor axis to
+    # the vertical (NaN: no attitude then): a slant range at the maximum is a
+    # vertical height below it
+    cos_tilt: float = float("nan")
 
 
 @dataclass(frozen=True, slots=True)

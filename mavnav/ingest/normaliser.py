@@ -663,8 +663,9 @@ class Normaliser:
         self.stats.range_source = self.range_sel.chosen
         r = self.range_checks.check(name, f, recv_s, t_us, boot)
         if type(r) is Refusal:
+            q = self.att.latest(t_us) if r.kind == "out_of_range" else None
             self._reject(recv_s, r.kind, r.detail, t_us, boot, sensor=RANGE_STREAM, value_m=r.value_m, min_m=r.min_m,
-                         max_m=r.max_m)
+                         max_m=r.max_m, cos_tilt=cos_tilt(down_row_from_quat(q)) if q is not None else math.nan)
             return
         if not self._admit(RANGE_STREAM, t_us, recv_s, boot):
             return
@@ -843,11 +844,11 @@ class Normaliser:
 
     def _reject(self, recv_s: float, kind: str, detail: str, t_us: Optional[int] = None, boot: Optional[int] = None,
                 sensor: Optional[str] = None, value_m: float = math.nan, min_m: float = math.nan,
-                max_m: float = math.nan) -> None:
+                max_m: float = math.nan, cos_tilt: float = math.nan) -> None:
         self.stats.rejected[kind] += 1
         self._emit(Rejected(recv_s=recv_s, kind=kind, detail=detail, t_us=t_us,
                             boot=boot if boot is not None or t_us is None else self.clock.boot, sensor=sensor,
-                            value_m=value_m, min_m=min_m, max_m=max_m))
+                            value_m=value_m, min_m=min_m, max_m=max_m, cos_tilt=cos_tilt))
 
     def _finalise_stats(self) -> None:
         st = self.stats

@@ -186,7 +186,7 @@ class HypothesisLogic:
                                      m.baro_u_significance_sigma, m.median_scale_update_s, m.residual_scale_max)
         self.ins_ex = Exceedance()  # baro/INS readings past its threshold and its suspect level
         self.raw_check = RawAuxCheck(window_s=m.raw_check_window_s, k=self.k_cmp)
-        self.refused: deque = deque()  # (t_us, kind, value_m, min_m, max_m)
+        self.refused: deque = deque()  # (t_us, kind, value_m, min_m, max_m, cos_tilt)
         self.range_valid: deque = deque()
         self.isolated_since: Optional[int] = None
         self.hold_since: Optional[int] = None  # an unresolved failure held since
@@ -289,7 +289,7 @@ class HypothesisLogic:
                 # moves (an injected 5 m step's return on a SITL hover) are no
                 # evidence against a rangefinder holding a steady height
                 return
-            self.refused.append((s.t_us, s.kind, s.value_m, s.min_m, s.max_m))
+            self.refused.append((s.t_us, s.kind, s.value_m, s.min_m, s.max_m, s.cos_tilt))
 
     # ------------------------------------------------------------------ before the step
 
@@ -1059,15 +1059,17 @@ class HypothesisLogic:
         h = float(self.bank.x[BARO, 0])
         margin = self._envelope_margin()
         bad = []
-        for _, kind, v, lo, hi in q:
+        for _, kind, v, lo, hi, cos_t in q:
             if kind == "stuck":
                 bad.append(f"frozen at {v:.2f} m")
             elif kind in ("out_of_range", "invalid_status", "impossible") and v == v:
                 lo = lo if lo == lo else 0.0
                 hi = hi if hi == hi else math.inf
-                if v <= lo + 1e-6 and h > lo + margin and h < hi - margin:
+                # the maximum is a slant range: tilted, the vertical height it reaches is less
+                hi_up = hi * cos_t if 0.0 < cos_t <= 1.0 else hi
+                if v <= lo + 1e-6 and h > lo + margin and h < hi_up - margin:
                     bad.append(f"reads {v:.2f} m (minimum {lo:g} m)")
-                elif v >= hi - 1e-6 and h < hi - margin:
+                elif v >= hi - 1e-6 and h < hi_up - margin:
                     bad.append(f"reads {v:.2f} m (maximum {hi:g} m)")
         n = len(q) + len(ok)
         if len(bad) >= m.range_envelope_min_refused and len(bad) >= m.range_envelope_frac * n:

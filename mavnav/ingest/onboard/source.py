@@ -432,7 +432,8 @@ class _Builder:
             rng_name = rec.rangefinder.name if rec.rangefinder is not None else ""
             code, rng, lo, hi, cos_t = c[2][i], c[3][i], c[4][i], c[5][i], c[6][i]
             return Rejected(recv, _RANGE_WHY[code], _range_detail(rng_name, code, rng, lo, hi, cos_t, self.cfg),
-                            t, 0, sensor=RANGE_STREAM, value_m=rng, min_m=lo, max_m=hi)
+                            t, 0, sensor=RANGE_STREAM, value_m=rng, min_m=lo, max_m=hi,
+                            cos_tilt=cos_t if code == 2 else math.nan)
         imu_name = rec.imu.name if rec.imu is not None else ""
         return Rejected(recv, "no_attitude", f"{imu_name}: no attitude within {self.cfg.attitude_max_age_s} s", t, 0,
                         sensor=IMU_STREAM)
