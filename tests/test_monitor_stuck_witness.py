@@ -36,7 +36,7 @@ def test_the_baro_step_is_alarmed_and_nothing_else_excluded():
 def test_counting_stuck_readings_while_the_baro_is_out_excludes_the_rangefinder(monkeypatch):
     def old(self, s):
         if s.kind in hypotheses.REFUSAL_KINDS:
-            self.refused.append((s.t_us, s.kind, s.value_m, s.min_m, s.max_m))
+            self.refused.append((s.t_us, s.kind, s.value_m, s.min_m, s.max_m, s.cos_tilt))
 
     monkeypatch.setattr(hypotheses.HypothesisLogic, "on_range_refused", old)
     s = I.job(dict(SPEC)).scores["adaptive"]
