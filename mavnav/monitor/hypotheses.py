@@ -816,9 +816,10 @@ class HypothesisLogic:
         implicates = self._aux_implicates(c, name)
         label = LABEL[name]
         sudden = self._sudden_now(name, t)
+        confirmed = rej >= m.alarm_rejections or stat > h  # the innovation test fails
         if (self.f.innovation_gating and sudden is not None and sudden.clean
-                and (rej >= m.alarm_rejections or stat > h or self._step_held(sudden))):
-            why = (f"{rej} samples rejected in {m.window_s:g} s" if rej >= m.alarm_rejections or stat > h
+                and (confirmed or self._step_held(sudden))):
+            why = (f"{rej} samples rejected in {m.window_s:g} s" if confirmed
                    else f"held {(sudden.last_us - sudden.t_us) * 1e-6:.2f} s")
             return Verdict(f"{name} innovation", "fail", frozenset((name,)), stat=stat, threshold=h,
                            text=f"{label} jumped {sudden.size_m:.2f} m while the baro and INS stayed consistent; "
