@@ -191,7 +191,7 @@ class Monitor:
                 p0 = self.cfg.filter.p0
                 self.bank.start(ep.t_us, ep.baro_m, p0.baro_bias_at_datum_m2 if at_datum else None,
                                 p0.vel_at_datum_m2ps2 if at_datum else None)
-                self.logic.start(ep.t_us, self.boot)
+                self.logic.start(ep.t_us, self.boot, self._baro_at_datum)
                 if self.input is None:
                     self.input = SourceTracker(INPUT, ep.t_us, self.boot)
                 self.counters["starts"] += 1

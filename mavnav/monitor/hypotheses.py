@@ -155,7 +155,7 @@ class HypothesisLogic:
 
     # ------------------------------------------------------------------ state
 
-    def start(self, t_us: int, boot: int) -> None:
+    def start(self, t_us: int, boot: int, at_datum: bool = True) -> None:
         m = self.m
         self.t0_us = t_us
         self.boot = boot
@@ -185,7 +185,7 @@ class HypothesisLogic:
                                      m.baro_u_memory_s, m.baro_u_min_samples, m.baro_u_outlier_sigma,
                                      m.baro_u_significance_sigma, m.median_scale_update_s, m.residual_scale_max)
         self.ins_ex = Exceedance()  # baro/INS readings past its threshold and its suspect level
-        self.raw_check = RawAuxCheck(window_s=m.raw_check_window_s, k=self.k_cmp)
+        self.raw_check = RawAuxCheck(window_s=m.raw_check_window_s, k=self.k_cmp, learn_ground=not at_datum)
         self.refused: deque = deque()  # (t_us, kind, value_m, min_m, max_m, cos_tilt)
         self.range_valid: deque = deque()
         self.isolated_since: Optional[int] = None
@@ -337,8 +337,12 @@ class HypothesisLogic:
         baro_z = self._judge_baro(ep, t, changes) if ep.baro_m is not None else math.inf
         if baro_z == math.inf:
             baro_z = self._latest_baro_z(t)
+        ground = self.raw_check.ground_m
+        if ground and ep.rng is not None:
+            # the ground a start away from the datum found under the rangefinder
+            changes["rng"] = dataclasses.replace(ep.rng, height_m=ep.rng.height_m + ground)
         for c, name in AUX:
-            aux = ep.gnss if c == GNSS else ep.rng
+            aux = ep.gnss if c == GNSS else changes.get("rng", ep.rng)
             self.pending_raw[c] = None
             if aux is not None:
                 self._judge_aux(ep, c, name, aux, t, baro_z, changes)
@@ -1019,10 +1023,15 @@ class HypothesisLogic:
         if d2 is not None:
             sc.push(t, d2 * _INV_SQRT6)
 
-    def _raw_verdict(self) -> Optional[Verdict]:
+    def _raw_verdict(self, t: int) -> Optional[Verdict]:
         if {GNSS_S, RANGEFINDER_S} & self.excluded:
             return None
-        v = self.raw_check.verdict()
+        rc = self.raw_check
+        unknown = rc.ground_m is None
+        v = rc.verdict()
+        if unknown and rc.ground_m:
+            # the ground is learnt: the rangefinder channel starts again on it
+            self._reinit_aux(RNG, RANGEFINDER_S, t, math.sqrt(self.sensor_var_floor[RNG]))
         if v is None:
             return None
         agree, mean, sigma = v
@@ -1057,7 +1066,8 @@ class HypothesisLogic:
             ok.popleft()
         if not q:
             return None
-        h = float(self.bank.x[BARO, 0])
+        # the height above the rangefinder's ground (learnt on a start away from the datum)
+        h = float(self.bank.x[BARO, 0]) - (self.raw_check.ground_m or 0.0)
         margin = self._envelope_margin()
         bad = []
         for _, kind, v, lo, hi, cos_t in q:
@@ -1277,7 +1287,7 @@ class HypothesisLogic:
         aux = (self._aux_verdict(GNSS, GNSS_S, t), self._aux_verdict(RNG, RANGEFINDER_S, t))
         drift = self._drift_verdict(t)
         baro_doppler = self._baro_doppler_verdict(t)
-        verdicts = [v for v in (*aux, *ins_tests, self._raw_verdict(), envelope, self._doppler_verdict(t),
+        verdicts = [v for v in (*aux, *ins_tests, self._raw_verdict(t), envelope, self._doppler_verdict(t),
                                 baro_doppler, drift)
                     if v is not None] + self._level_verdicts(t, avail)
         if self.f.kink_isolation and self.slow_imu_hz is None:  # the INS witnesses the kinks

@@ -36,7 +36,7 @@ class PaperLogic:
         self.last_aux_us = {GNSS: None, RNG: None}
         self.last_baro_us = None
 
-    def start(self, t_us: int, boot: int) -> None:
+    def start(self, t_us: int, boot: int, at_datum: bool = True) -> None:
         self.t0_us = t_us
         self.trackers = {s: SourceTracker(s, t_us, boot) for s in sensors.SENSOR_SOURCES}
         self.last_baro_us = t_us

@@ -6,8 +6,18 @@ like an aux-sensor fault. The raw heights of the two aux sensors share nothing
 with the baro or the INS: if they agree, an aux sensor is not the culprit.
 
 Rangefinder heights are above the ground, GNSS heights above the reference;
-the paper's flat-ground assumption (ground at the reference) is made here
-too, as in the rangefinder channel itself.
+the paper's flat-ground assumption is made here too, as in the rangefinder
+channel itself: the ground is where the vehicle stood. A start on the ground
+at the datum puts it at the reference. A start anywhere else (a log or a link
+joined in flight) says nothing of where the ground lies against the
+reference, so the check learns it: the mean difference of its first full
+window, where it departs from zero by more than the test's own threshold,
+is the ground's height against the reference (``ground_m``; within it the
+flat ground stands). The monitor then adds it to every rangefinder reading,
+for its channel and for this check, whose later windows are tested against
+zero with the ground's own sigma (one window's) counted. A rangefinder
+already faulty at such a start is learnt as ground; nothing in the data can
+tell the two apart.
 """
 
 from __future__ import annotations
@@ -18,10 +28,14 @@ from typing import Optional
 
 
 class RawAuxCheck:
-    def __init__(self, window_s: float, k: float, max_skew_s: float = 0.25):
+    def __init__(self, window_s: float, k: float, max_skew_s: float = 0.25, learn_ground: bool = False):
         self.window_us = int(window_s * 1e6)
         self.k = k
         self.max_skew_us = int(max_skew_s * 1e6)
+        # the ground's height against the reference and its variance: known (0, 0)
+        # for a start at the datum, learnt from the first full window otherwise
+        self.ground_m: Optional[float] = None if learn_ground else 0.0
+        self.ground_var_m2 = 0.0
         self._g: Optional[tuple[int, float, float]] = None  # (t_us, z, sigma)
         self._r: Optional[tuple[int, float, float]] = None
         self._q: deque[tuple[int, float, float]] = deque()  # (t_us, diff, var)
@@ -48,7 +62,17 @@ class RawAuxCheck:
         if n < 3:
             return None
         mean = sum(d for _, d, _ in self._q) / n
-        sigma = math.sqrt(sum(v for _, _, v in self._q) / n)
+        var = sum(v for _, _, v in self._q) / n
+        if self.ground_m is None:
+            if self._q[-1][0] - self._q[0][0] < self.window_us * (n - 1) / n:
+                return None  # the first window is not full yet
+            if abs(mean) > self.k * math.sqrt(var):
+                # the readings still to come carry the ground (the caller adds it)
+                self.ground_m, self.ground_var_m2 = mean, var
+                self._q.clear()
+                return None
+            self.ground_m = 0.0
+        sigma = math.sqrt(var + self.ground_var_m2)
         return abs(mean) <= self.k * max(sigma, 1e-6), mean, sigma
 
     def clear(self) -> None:
