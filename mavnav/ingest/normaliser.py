@@ -212,6 +212,9 @@ class Normaliser:
         self.refs = HeightReferences(cfg, self.clock, lambda: self._last_recv)
         self._imu_out = False  # an IMU sample of this boot went out
         self._pre_imu: List[object] = []  # measurements waiting for it
+        # every sample while the baro reference is pending (its baro samples held in
+        # refs): released with the baro samples in time order once it is known
+        self._ref_hold: Optional[List[tuple]] = None
         self._last_recv: Optional[float] = None
         self._link_lost = False
         self._ap_held: Deque[AutopilotItem] = deque()
@@ -606,6 +609,11 @@ class Normaliser:
     def _pressure_at(self, p_pa, t_us, recv_s) -> None:
         self.range_checks.stuck.pressure(p_pa)
         self._on_refs(self.refs.pressure(BaroItem(t_us, recv_s, self.clock.boot, p_pa)))
+        if self._ref_hold is None and self.refs.baro.value is None and self.refs.baro.held:
+            # the baro waits for its reference: so does everything after it, or the
+            # epoch builder would meet the IMU and the rangefinder before the baro
+            # that starts it and drop them
+            self._ref_hold = []
 
     # ------------------------------------------------------------------ GNSS
 
@@ -781,6 +789,13 @@ class Normaliser:
             self.stats.filtered["vehicle_class"] += 1
             return
         self.stats.samples[kind] += 1
+        hold = self._ref_hold
+        if hold is not None:
+            hold.append((kind, sample))
+            return
+        self._pass(kind, sample)
+
+    def _pass(self, kind: str, sample) -> None:
         if kind not in GATED or (self._imu_out and not self._pre_imu):
             self._out.append(sample)
             if kind == IMU_STREAM:
@@ -815,7 +830,26 @@ class Normaliser:
         self._out = merged
 
     def _on_refs(self, out: list) -> None:
-        """Pass on what the reference stage releases (see :mod:`.heightref`)."""
+        """Pass on what the reference stage releases (see :mod:`.heightref`);
+        once the baro reference is known, the samples held while it was pending
+        go out with the baro samples, in time order."""
+        self._pass_refs(out)
+        hold = self._ref_hold
+        if hold is not None and self.refs.baro.value is not None:
+            self._ref_hold = None
+            # the references first (they fix the frame of what follows), then the rest
+            # in time order (stable: one stream's samples keep their order, and a
+            # gap or a refusal stays before the sample it came with)
+            self._out += [x for k, x in hold if k is None and type(x) is ReferenceSet]
+            hold.sort(key=_held_order)
+            for kind, sample in hold:
+                if kind is None:
+                    if type(sample) is not ReferenceSet:
+                        self._out.append(sample)
+                else:
+                    self._pass(kind, sample)
+
+    def _pass_refs(self, out: list) -> None:
         for x in out:
             kind = type(x)
             if kind is BaroHeight:
@@ -840,6 +874,10 @@ class Normaliser:
             self.stats.filtered["vehicle_class"] += 1
             return
         self.stats.events[type(event).__name__] += 1
+        hold = self._ref_hold
+        if hold is not None and getattr(event, "t_us", None) is not None:
+            hold.append((None, event))  # a timed event (a gap, a refusal) keeps its place among the samples
+            return
         self._out.append(event)
 
     def _reject(self, recv_s: float, kind: str, detail: str, t_us: Optional[int] = None, boot: Optional[int] = None,
@@ -861,3 +899,8 @@ class Normaliser:
 
 def _sample_t(s) -> int:
     return s.t_us
+
+
+def _held_order(item: tuple) -> tuple:
+    sample = item[1]
+    return sample.boot, sample.t_us
