@@ -596,7 +596,22 @@ def report(groups: Dict[str, List[Path]], results: List[dict], wall: float, args
           "Wrong exclusions the unfaulted flight does not make within 2 s (the fault's own): "
           + ", ".join(f"{m} {sum(bool(x[m].get('wrong_by_fault', x[m]['wrong'])) for x in faulted)}"
                       for m in CONTENDERS) + ".")
+        p("")
+        p(isolation_line(applicable))
     return "\n".join(lines) + "\n"
+
+
+def isolation_line(applicable: List[dict]) -> str:
+    """Isolated of alarmed over the runs whose fault changed a sample (issue 13's
+    isolation): the table above also counts as alarmed a run whose fault
+    changed nothing (a GNSS fault on a flight without GNSS) when the flight's
+    own alarm falls in its window, which says nothing of isolation."""
+    cells = []
+    for m in CONTENDERS:
+        det = sum(x[m]["detected"] for x in applicable)
+        iso = sum(x[m]["detected"] and x[m]["isolated"] for x in applicable)
+        cells.append(f"{m} {iso}/{det}" + (f" ({100.0 * iso / det:.1f} %)" if det else ""))
+    return "Isolated of alarmed, over the runs whose fault changed a sample: " + ", ".join(cells) + "."
 
 
 def in_target(row: dict, contender: str) -> bool:

@@ -14,7 +14,7 @@ from mavnav.ingest import LiveSource, TlogSource
 from mavnav.samples import (
     BaroHeight, LinkLost, LinkRecovered, SpecificForceUp,
 )
-from tests.support.flightlog import FlightLog
+from tests.support.flightlog import P_GROUND_PA, FlightLog
 from tests.support.live import MEASUREMENTS, Sender, no_recv, tlog_records
 from tests.support.paths import SHARED_TLOGS
 
@@ -106,7 +106,9 @@ def test_injected_clock_stamps_receive_time(tmp_path):
     f = FlightLog(tmp_path / "clock.tlog")
     f.fly(0, 1)
     ticks = iter(range(10**9))
-    src = LiveSource("udpin:127.0.0.1:0", IngestConfig(link_timeout_s=1e6), clock=lambda: 1000.0 + next(ticks))
+    # a configured baro reference: nothing waits for a home this 1 s flight never sends
+    cfg = IngestConfig(link_timeout_s=1e6, baro_reference={"source": "config", "value": P_GROUND_PA})
+    src = LiveSource("udpin:127.0.0.1:0", cfg, clock=lambda: 1000.0 + next(ticks))
     sender = Sender(tlog_records(f.close()), src.local_address, speed=10.0)
     got = []
     sender.start()

@@ -6,7 +6,8 @@ sample-to-sample noise over 0.04 s, set the speed to 4-6 m/s on simulated
 ground starts; the rows after it could not take it back for three seconds and
 the fused height sat 2.5-3.3 m below the ground at 'nominal' while the baro
 and the GNSS read it within 0.4 m (the grid flights of bench/integrity.py,
-seeds 8 and 10, shipped model)."""
+seeds 8 and 10, shipped model). Part of that was the IMU dropped before the
+first epoch while the baro waited for its reference (fixed in session 21)."""
 
 from __future__ import annotations
 
@@ -47,6 +48,12 @@ def test_a_ground_start_does_not_take_its_speed_from_baro_noise(seed):
     assert misleading_s == 0.0
 
 
-def test_with_the_general_prior_the_start_is_hazardous():
-    err_m, _ = _fly(10, {"vel_at_datum_m2ps2": 20.0})
-    assert err_m > 3.0
+def test_with_the_general_prior_the_start_is_worse():
+    """Since the IMU waits with the baro for its reference instead of being
+    dropped before the first epoch (session 21), the general prior is no
+    longer hazardous on these seeds (seed 10: over 3 m -> 0.9 m), but it still
+    lets the first rows move the speed: seed 8 sits 2.45 m off in its first
+    5 s against 1.79 m with the prior of a vehicle at rest."""
+    err_general_m, _ = _fly(8, {"vel_at_datum_m2ps2": 20.0})
+    err_m, _ = _fly(8, {})
+    assert err_general_m > err_m + 0.4

@@ -321,3 +321,19 @@ def test_misleading_counts_error_beyond_the_protection_level_hand_checked():
     # an infinite protection level bounds everything; nothing offered, nothing misleading
     assert sm.misleading(t, h, [math.inf] * 5, overall, truth_t, truth_h)[0] == 0.0
     assert sm.misleading(t, h, pl, ["unavailable"] * 5, truth_t, truth_h) == (0.0, 0.0)
+
+
+def test_isolation_counts_only_runs_whose_fault_changed_a_sample():
+    """A GNSS fault injected into a flight without GNSS changes nothing; the
+    flight's own baro alarm in its window is not an isolation failure of it."""
+    from bench import realflights as R
+
+    def run(changed, detected, isolated):
+        one = {"detected": detected, "isolated": isolated}
+        return {"samples_changed": changed, **{m: dict(one) for m in R.CONTENDERS}}
+
+    rows = [run(90, True, True), run(90, True, True), run(90, True, False), run(0, True, False), run(80, False, False)]
+    applicable = [r for r in rows if r["samples_changed"] > 0]
+    line = R.isolation_line(applicable)
+    assert "adaptive 2/3 (66.7 %)" in line
+    assert "adaptive 2/4 (50.0 %)" in R.isolation_line(rows)  # what counting every run would say

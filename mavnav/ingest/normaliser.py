@@ -61,7 +61,10 @@ and what is said about them (:mod:`.systems`):
   ``startup_window_s`` up to it as the pressure at home. Held samples wait
   at most ``home_wait_s``; after 1 s a :class:`~mavnav.samples.Notice`
   says what they wait for, and with nothing in time the reference is the
-  start-up mean.
+  start-up mean. While the baro reference is pending every sample and
+  timed event waits with the baro samples and goes out with them, the
+  reference first, then in time order: the epoch builder starts at the
+  first baro sample and would drop what reached it before.
 * **A home that moves** (``follow_home``): a new home set at arming, or at
   another altitude, moves the reference point and a
   :class:`~mavnav.samples.ReferenceMoved` says so; the references stay
