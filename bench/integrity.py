@@ -279,6 +279,18 @@ def _inflight(seed: int, opts: dict) -> dict:
     return {"scenario": d}
 
 
+def _inflight_terrain(seed: int, opts: dict) -> dict:
+    """Joined in flight at 25 m above the reference over ground 3-12 m above
+    or below it for the whole flight: the ground under the rangefinder is
+    not the reference's, and nothing but the GNSS says where it is."""
+    d = _yaml("px4_inflight_start")
+    d["trajectory"]["height_m"] = 25.0
+    size = _u(seed, "inflight_terrain", 3.0, 12.0)
+    ground = round(size if _u(seed, "inflight_terrain", 0.0, 1.0, 1) < 0.5 else -size, 1)
+    d["terrain"] = [{"from_s": 0.0, "to_s": float(d["duration_s"]) + 1.0, "height_m": ground}]
+    return {"scenario": d, "note": f"ground {ground:+g} m"}
+
+
 def _long(seed: int, opts: dict) -> dict:
     minutes = opts.get("long_minutes", 5.0)
     d = yaml.safe_load(GRID_SCENARIO.read_text())
@@ -351,6 +363,8 @@ def families() -> List[Family]:
                "unavailable, never a sensor", None, _slow_telemetry, cost=0.3),
         Family("inflight_start", "the monitor connects with the vehicle at 30-35 m (px4_inflight_start, "
                "px4_landing_nominal)", None, _inflight),
+        Family("inflight_terrain", "the monitor connects with the vehicle at 25 m over ground 3-12 m above or "
+               "below the reference (px4_inflight_start with terrain)", None, _inflight_terrain),
         Family("long_fault_free", "fault-free flights of --long-minutes (hover, height steps)", None, _long,
                group="long", cost=5.0),
     ]
