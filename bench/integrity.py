@@ -55,7 +55,8 @@ rangefinder and baro steps at 3/5/8 sigma for 10 s, GNSS and baro ramps at
 and fault-free; the scenario files of issue 13 (descent from above the
 rangefinder's maximum, alone, with a 12 s GNSS ramp and with one to the end; take-off and landing;
 a roof; a frozen rangefinder in a descent; GNSS wander; 2-4 Hz telemetry;
-in-flight start); long fault-free flights; and faults injected into the
+in-flight start, over flat ground and over ground 3-12 m off the reference);
+long fault-free flights; and faults injected into the
 ArduPilot SITL log ``../shared/tlogs/sitl/copter_rangefinder_nominal.tlog``
 (if present). The range families alternate the rangefinder's out-of-range
 encoding by seed (odd: signal_quality 1 "invalid"; even: 0 "unknown", the
