@@ -1332,6 +1332,12 @@ class HypothesisLogic:
         h, sigma, vpl = math.nan, math.nan, math.nan
         if idx:
             cov = bank.height_cov(idx)
+            if used[RNG] and self.raw_check.ground_var_m2 > 0.0:
+                # the ground a start away from the datum learnt under the rangefinder
+                # from the GNSS: its channel's height carries that ground's error, which
+                # its filter does not know (the ground is no state of the channel)
+                k = idx.index(RNG)
+                cov[k][k] += self.raw_check.ground_var_m2
             h, sigma, w = fuse_heights([bank.x[c, 0] for c in idx], cov, self.f.inverse_variance)
             if self.f.separation_protection:
                 lean, own = -1, None
