@@ -9,7 +9,11 @@ sample with ``window`` seconds of continuous data behind it:
 
 * ``pos-dop``: ``[h(t) - h(t - W)] - integral of v_up`` (the statistic of
   ``mavnav/monitor/doppler.py``);
-* ``baro-dop``: the same with the baro's height change;
+* ``baro-dop``: the same with the baro's height change, its latest sample
+  carried to each GNSS sample;
+* ``baro-lvl``: the same as the monitor reads it (``mavnav/monitor/barolevel.py``):
+  at the window's start the median of the baro over ``monitor.baro_doppler_level_span_s``
+  centred there, at its end the median of its last ``baro_doppler_end_samples``;
 * ``gnss-baro``: the GNSS height change against the baro's.
 
 Printed as the 50th, 90th, 99th percentile and the maximum of the absolute
@@ -35,6 +39,8 @@ from realflights import find_flights  # noqa: E402
 from mavnav.config import config_from_dict  # noqa: E402
 from mavnav.errors import MavnavError  # noqa: E402
 from mavnav.ingest import open_log  # noqa: E402
+from mavnav.monitor.barolevel import BaroLevel  # noqa: E402
+from mavnav.monitor.doppler import DopplerCheck  # noqa: E402
 from mavnav.samples import BaroHeight, GnssHeight  # noqa: E402
 
 MAX_GAP_S = 1.5
@@ -59,6 +65,26 @@ def _window_diffs(t, h, v, b, window_s):
     return {key: np.concatenate(v) if v else np.zeros(0) for key, v in out.items()}
 
 
+def baro_levels(g: np.ndarray, b: np.ndarray, window_s: float, m) -> np.ndarray:
+    """The baro/Doppler reading at every GNSS sample with a full window, the
+    baro read through :class:`BaroLevel` as the monitor reads it."""
+    level = BaroLevel(m.baro_doppler_level_span_s, window_s, MAX_GAP_S, m.baro_doppler_end_samples)
+    check = DopplerCheck(window_s, MAX_GAP_S)
+    events = sorted([(t, 0, h) for t, h in b] + [(t, 1, v) for t, _, v in g])
+    out = []
+    for t, kind, x in events:
+        t_us = int(round(t * 1e6))
+        if kind == 0:
+            level.push_baro(t_us, x)
+            continue
+        level.push_gnss(t_us, x)
+        end = level.end_m(t_us)
+        e = None if end is None else check.push(t_us, end, x, level.centred_m)
+        if e is not None:
+            out.append(e)
+    return np.asarray(out)
+
+
 def flight(path: str, window_s: float):
     cfg = config_from_dict({})
     g, b = [], []
@@ -76,6 +102,7 @@ def flight(path: str, window_s: float):
     d = _window_diffs(g[:, 0], g[:, 1], g[:, 2], bi, window_s)
     if d["pos-dop"].size < 5:
         return None
+    d["baro-lvl"] = baro_levels(g, b, window_s, cfg.monitor)
     return {"hz": len(g) / max(g[-1, 0] - g[0, 0], 1e-9), **d}
 
 
@@ -89,10 +116,10 @@ def main(argv=None) -> int:
     ap.add_argument("--window", type=float, default=5.0, help="seconds (monitor.doppler_window_s)")
     args = ap.parse_args(argv)
     paths = args.paths or [str(p) for ps in find_flights().values() for p in ps]
-    tot = {"pos-dop": [], "baro-dop": [], "gnss-baro": []}
+    tot = {"pos-dop": [], "baro-dop": [], "baro-lvl": [], "gnss-baro": []}
     print(f"window {args.window:g} s; |e| percentiles 50/90/99/max (m)")
-    print("| flight | GNSS Hz | samples | pos-dop | baro-dop | gnss-baro |")
-    print("|---|---|---|---|---|---|")
+    print("| flight | GNSS Hz | samples | pos-dop | baro-dop | baro-lvl | gnss-baro |")
+    print("|---|---|---|---|---|---|---|")
     for p in paths:
         try:
             r = flight(p, args.window)
@@ -101,7 +128,7 @@ def main(argv=None) -> int:
         if r is None:
             continue
         print(f"| {Path(p).name} | {r['hz']:.1f} | {r['pos-dop'].size} | {_q(r['pos-dop'])} | "
-              f"{_q(r['baro-dop'])} | {_q(r['gnss-baro'])} |")
+              f"{_q(r['baro-dop'])} | {_q(r['baro-lvl'])} | {_q(r['gnss-baro'])} |")
         for k in tot:
             tot[k].append(r[k])
     for k, v in tot.items():

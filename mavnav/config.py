@@ -498,6 +498,16 @@ class MonitorConfig(_Section):
     # 0.6-2.9 m on the modern receivers, bench/doppler_stats.py) while a ramp's
     # doubles, so a 0.5 m/s baro ramp clears the threshold sooner over 10 s.
     baro_doppler_window_s: float = Field(10.0, gt=0)
+    # The baro at that window's start is the median of its samples over this
+    # span centred there, at its end the median of its last
+    # baro_doppler_end_samples within the span, each carried to the GNSS
+    # sample's time along the Doppler integral (monitor/barolevel.py); 0: the
+    # latest sample alone at both ends.
+    baro_doppler_level_span_s: float = Field(1.0, ge=0)
+    baro_doppler_end_samples: int = Field(3, ge=1)
+    # The baro at each end of that window is the mean of its samples over
+    # this span (each carried by the Doppler velocity to the GNSS sample's time).
+    baro_doppler_smooth_s: float = Field(1.0, ge=0)
     # The baro's height change is good to a fraction of the distance moved:
     # its scale (the air temperature against the standard atmosphere's, a few
     # per cent), the static-pressure error of the climb or descent and ground

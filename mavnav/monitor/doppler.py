@@ -25,11 +25,15 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from typing import Optional
+from typing import Callable, Optional
 
 # The shortest span a window check reads from by default, as a fraction of its
 # window: a window restarted by a gap reads again once it holds this much.
 MIN_SPAN_FRAC = 0.8
+
+
+def _or(x: Optional[float], default: float) -> float:
+    return default if x is None else x
 
 
 def restart_on_gap(h: deque, t_us: int, max_gap_us: int) -> None:
@@ -81,9 +85,12 @@ class DopplerCheck:
         self.hist.clear()
         self.last_e_m = math.nan
 
-    def push(self, t_us: int, height_m: float, vel_up_mps: float) -> Optional[float]:
+    def push(self, t_us: int, height_m: float, vel_up_mps: float,
+             start_m: Optional[Callable[[int], Optional[float]]] = None) -> Optional[float]:
         """``e`` at this sample (m), or None while less than 80 % of a window of
-        continuous data is held."""
+        continuous data is held. ``start_m``: the height at an earlier
+        sample's time, read again now (a level that needed later samples, as
+        :mod:`.barolevel`'s), used at the window's start where it gives one."""
         if not (math.isfinite(height_m) and math.isfinite(vel_up_mps)):
             self.clear()
             return None
@@ -98,6 +105,8 @@ class DopplerCheck:
         if first is None:
             return None
         t_j, h_j, _, i_j = first
+        if start_m is not None:
+            h_j = _or(start_m(t_j), h_j)
         e = (height_m - h_j) - (integral - i_j)
         disp = integral - i_j
         if self.scale_frac > 0.0 and t_us - t_j > self.min_span_us and self.min_span_us < 0.8 * self.window_us:
@@ -106,6 +115,8 @@ class DopplerCheck:
             while k > 0 and t_us - h[k][0] < self.min_span_us:
                 k -= 1
             t_k, h_k, _, i_k = h[k]
+            if start_m is not None:
+                h_k = _or(start_m(t_k), h_k)
             e_k, d_k = (height_m - h_k) - (integral - i_k), integral - i_k
             if abs(e_k) * self.error_m(disp) > abs(e) * self.error_m(d_k):
                 t_j, e, disp = t_k, e_k, d_k

@@ -51,6 +51,7 @@ from ..config import Config
 # the sensor words (the names GNSS, RNG, BARO are the bank's channel indices here)
 from ..sensors import BARO as BARO_S, BARO_INS as BARO_INS_S, GNSS as GNSS_S, INS as INS_S
 from ..sensors import RANGEFINDER as RANGEFINDER_S
+from .barolevel import BaroLevel
 from .baronoise import BaroNoiseMeter
 from .cusum import Cusum, threshold_for
 from .decision import Decision, diff_sigmas, pair_reports_scaled
@@ -170,6 +171,10 @@ class HypothesisLogic:
         self.last_seen_us: dict[int, Optional[int]] = {GNSS: None, RNG: None}
         self.last_baro_us = t_us
         self.last_baro_m: Optional[float] = None
+        # the baro's robust level at each GNSS sample, for the baro/Doppler check
+        self.baro_level = (BaroLevel(m.baro_doppler_level_span_s, m.baro_doppler_window_s, m.doppler_max_gap_s,
+                                     m.baro_doppler_end_samples)
+                           if m.baro_doppler_level_span_s > 0 else None)
         self.slow_imu_hz: Optional[float] = None  # set by the core's rate check: the IMU below min_imu_rate_hz
         self.last_z = {GNSS_S: math.nan, RANGEFINDER_S: math.nan, BARO_INS_S: math.nan}
         self.consistent_since: dict[str, Optional[int]] = {s: None for s in SENSOR_SOURCES}
@@ -355,6 +360,8 @@ class HypothesisLogic:
         self.rates[BARO_INS_S].push(t)
         self.last_baro_us = t
         self.last_baro_m = ep.baro_m
+        if self.baro_level is not None:
+            self.baro_level.push_baro(t, ep.baro_m)
         self.baro_white_var = ep.baro_white_var_m2
         # judged in the channel held best by an aux sensor (its velocity is the
         # surest); the baro+INS channel alone trades a level error for velocity
@@ -525,11 +532,12 @@ class HypothesisLogic:
         reading's own error times the check's measured scale."""
         return self.k_cmp * check.error_m(check.last_disp_m) * self.scale[key].factor
 
-    def _push_window(self, check, key: str, ex: Exceedance, t_meas: int, h: float, v: float) -> None:
+    def _push_window(self, check, key: str, ex: Exceedance, t_meas: int, h: float, v: float,
+                     start_m=None) -> None:
         """One sample into a Doppler window check: its exceedance against the
         reading's own error, and its measured scale (frozen while it leans
         towards a fault)."""
-        e = check.push(t_meas, h, v)
+        e = check.push(t_meas, h, v, start_m)
         if e is None:
             ex.reset()
             return
@@ -540,12 +548,19 @@ class HypothesisLogic:
 
     def _push_doppler(self, t_meas: int, aux) -> None:
         self._push_window(self.doppler, "doppler", self.doppler_ex, t_meas, aux.height_m, aux.vel_up_mps)
+        level = self.baro_level
+        if level is not None:
+            level.push_gnss(t_meas, aux.vel_up_mps)
         if self.last_baro_m is not None:  # its verdict is optional; readmission always heeds it
-            # the latest baro carried to the GNSS sample's time by the Doppler velocity
+            # the baro's level at the GNSS sample's time (:mod:`.barolevel`), or
+            # the latest baro carried there by the Doppler velocity
+            b = level.end_m(t_meas) if level is not None else None
             iv = self.rates[BARO_INS_S].interval_s
             if iv == iv and abs(t_meas - self.last_baro_us) <= 2e6 * iv:
-                b = self.last_baro_m + aux.vel_up_mps * (t_meas - self.last_baro_us) * 1e-6
-                self._push_window(self.baro_doppler, "baro_doppler", self.baro_doppler_ex, t_meas, b, aux.vel_up_mps)
+                if b is None:
+                    b = self.last_baro_m + aux.vel_up_mps * (t_meas - self.last_baro_us) * 1e-6
+                self._push_window(self.baro_doppler, "baro_doppler", self.baro_doppler_ex, t_meas, b, aux.vel_up_mps,
+                                  level.centred_m if level is not None else None)
 
     def _push_drift(self, t_meas: int, aux) -> None:
         """A GNSS sample without a Doppler velocity into the drift check
