@@ -522,13 +522,16 @@ class MonitorConfig(_Section):
     # The GNSS altitude's drift against the baro where the receiver reports no
     # Doppler velocity (features.gnss_drift_check, monitor/drift.py): the slope
     # of GNSS - baro fitted over gnss_drift_window_s, against k(false_alarm_prob)
-    # times the fit's white-noise error and gnss_drift_sigma_mps in quadrature,
-    # times its measured scale (it only widens). gnss_drift_sigma_mps: the
-    # healthy receivers' own drift rate; the slope over 10 s stays within
-    # 0.02-0.23 m/s on the healthy flights here (99.9th percentile;
-    # bench/drift_stats.py), 0.23 being 4.4 sigma at 0.05 m/s.
+    # times the fit's white-noise error, gnss_drift_sigma_mps and the baro's
+    # slow error u through the fit (the sensor model's, sensors.baro.sigma_bb_m
+    # at gamma_bb_per_s) in quadrature, times its measured scale
+    # (it only widens). The slope over 10 s stays within 0.02-0.23 m/s on the
+    # healthy flights here (99.9th percentile; bench/drift_stats.py), 0.23
+    # being 4.4 sigma at 0.05 m/s; of that the shipped baro model's u (0.2 m at
+    # 0.5 /s) is 0.031 m/s, so gnss_drift_sigma_mps, the receiver's own drift
+    # rate, is the rest: sqrt(0.05^2 - 0.031^2).
     gnss_drift_window_s: float = Field(10.0, gt=0)
-    gnss_drift_sigma_mps: float = Field(0.05, gt=0)
+    gnss_drift_sigma_mps: float = Field(0.0395, gt=0)
     # Rangefinder envelope: readings refused below its minimum (or above its
     # maximum) while the other sources put the vehicle more than margin inside
     # its range, for most of a window, are a rangefinder failure.

@@ -27,11 +27,50 @@ Pure: samples in, the slope out; the caller owns thresholds and verdicts.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections import deque
 from typing import Optional
 
 from .doppler import MIN_SPAN_FRAC, restart_on_gap, window_first
+
+def gm_slope_var_factor(gamma_per_s: float, window_s: float) -> float:
+    """The variance of the least-squares slope over ``window_s`` of a
+    stationary first-order Gauss-Markov process, per unit of its variance
+    (m^2/s^2 per m^2):
+
+        (12 / W^3)^2 * 2 * integral_0^W g(tau) exp(-gamma tau) dtau,
+        g(tau) = W^3 / 12 - W^2 tau / 4 + tau^3 / 6
+
+    (``g`` sums ``c(t) c(t + tau)`` over the window, ``c(t) = t - W / 2``: the
+    slope of a continuous record; a sampled one is no steadier). The baro's
+    slow error ``u`` is such a process; sampled at 5-10 Hz with a correlation
+    time of a second or two its second differences hardly show it, so the
+    fit's white-noise term misses it: the simulator's ``u`` (0.5 m at 1 s)
+    moves the slope over 10 s by 0.065 m/s (1 sigma), more than the check's
+    whole allowance for a real receiver. The integral in closed form (a cubic
+    times an exponential); below ``gamma W`` 0.5, where its terms cancel, by
+    midpoint sums. Limits: ``12 gamma / (5 W)`` for a slow process (a random
+    walk), ``24 / (gamma W^3)`` for a fast one (white noise)."""
+    return _gm_slope_var_factor(float(gamma_per_s), float(window_s))
+
+
+@functools.lru_cache(maxsize=16)
+def _gm_slope_var_factor(gamma: float, W: float) -> float:
+    if gamma * W >= 0.5:
+        e = math.exp(-gamma * W)
+        j = (W ** 3 / (12.0 * gamma) - W * W * (1.0 + e) / (4.0 * gamma ** 2) - W * e / gamma ** 3
+             + (1.0 - e) / gamma ** 4)
+    else:
+        n = 400
+        h = W / n
+        j = 0.0
+        for i in range(n):
+            tau = (i + 0.5) * h
+            j += (W ** 3 / 12.0 - W * W * tau / 4.0 + tau ** 3 / 6.0) * math.exp(-gamma * tau)
+        j *= h
+    return 2.0 * j * 144.0 / W ** 6
+
 
 # A fit needs this many samples (and the window spanned to MIN_SPAN_FRAC).
 MIN_SAMPLES = 5
