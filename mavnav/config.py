@@ -338,6 +338,9 @@ class AdaptiveFeatures(_Section):
     # (consecutive innovations share the channel's error: their change is small)
     sudden_jump_measured: bool = True
     sudden_jump_persist: bool = True
+    # near the ground the flight started on, a baro departure below a test's
+    # threshold is ground effect, not a suspicion (monitor.ground_effect_height_m)
+    ground_effect_watch: bool = True
 
 
 class MonitorConfig(_Section):
@@ -505,6 +508,15 @@ class MonitorConfig(_Section):
     # latest sample alone at both ends.
     baro_doppler_level_span_s: float = Field(1.0, ge=0)
     baro_doppler_end_samples: int = Field(3, ge=1)
+    # Within this height of the ground the flight started on (the fused height
+    # above its datum), the baro reads the propellers' downwash: on the ground
+    # before take-off, at take-off and at touchdown the real flights' baros
+    # depart by 0.5-2 m from the GNSS Doppler and the INS for a second or two
+    # (autopilots waive it too: ArduPilot's EK3_GND_EFF_DZ, PX4's
+    # EKF2_GND_EFF_DZ within EKF2_GND_MAX_HGT). There a test implicating the
+    # baro that is past its suspect level but not its threshold is no
+    # suspicion (features.ground_effect_watch); failures still count.
+    ground_effect_height_m: float = Field(1.0, ge=0)
     # The baro at each end of that window is the mean of its samples over
     # this span (each carried by the Doppler velocity to the GNSS sample's time).
     baro_doppler_smooth_s: float = Field(1.0, ge=0)

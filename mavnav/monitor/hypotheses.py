@@ -191,6 +191,8 @@ class HypothesisLogic:
                                      m.baro_u_significance_sigma, m.median_scale_update_s, m.residual_scale_max)
         self.ins_ex = Exceedance()  # baro/INS readings past its threshold and its suspect level
         self.raw_check = RawAuxCheck(window_s=m.raw_check_window_s, k=self.k_cmp, learn_ground=not at_datum)
+        self.at_datum = at_datum  # the start on the ground at the datum: the ground's height is known there
+        self.last_fused_m = math.nan
         self.refused: deque = deque()  # (t_us, kind, value_m, min_m, max_m, cos_tilt)
         self.range_valid: deque = deque()
         self.isolated_since: Optional[int] = None
@@ -1316,7 +1318,19 @@ class HypothesisLogic:
                     if v is not None] + self._level_verdicts(t, avail)
         if self.f.kink_isolation and self.slow_imu_hz is None:  # the INS witnesses the kinks
             verdicts += self._kink_verdicts(t, aux, (drift, baro_doppler))
+        if self.f.ground_effect_watch and self._near_ground():
+            verdicts = [v for v in verdicts if not (v.level == "suspect" and BARO_S in v.implicates)]
         return verdicts, aux
+
+    def _near_ground(self) -> bool:
+        """The fused height within ``ground_effect_height_m`` of the ground the
+        flight started on (its datum): on the ground with the propellers
+        turning, at take-off and at touchdown, where the baro reads their
+        downwash (ground effect) and a departure below a test's threshold is
+        expected, not a suspicion. Failures still count; after a start away
+        from the datum the ground is unknown and nothing is waived."""
+        h = self.last_fused_m
+        return self.at_datum and h == h and h < self.m.ground_effect_height_m
 
     def _slow_ins(self, v: Optional[Verdict]) -> Optional[Verdict]:
         """An INS test while the IMU runs below ``min_imu_rate_hz`` (the core's
@@ -1372,6 +1386,7 @@ class HypothesisLogic:
                     floor = self.sensor_var_floor
                     own = [floor[c] if c != BARO and bank.baro_on[c] and floor[c] > lim2 else 0.0 for c in idx]
                 vpl, _ = protection_level(sigma, cov, w, self.k_ff, self.k_cmp, self.k_md, lean, own)
+        self.last_fused_m = h
         return h, sigma, used, vpl
 
     def _restart_held(self, t: int, j: Judgement, aux) -> Judgement:
