@@ -1,10 +1,10 @@
 """Near the ground the flight started on, a baro departure below a test's
 threshold is ground effect, not a suspicion (features.ground_effect_watch,
-monitor.ground_effect_height_m): on a real flight whose baro dips metres as
-its propellers spin up on the ground, the baro's cautions there go and
-nothing else moves; failures still count, so every alarm of the flight, and
-of the same flight with a baro ramp injected, is the same with and without
-the watch."""
+monitor.ground_effect_height_m): on a real flight the baro's cautions at
+take-off and touchdown go and nothing else moves; failures still count, so
+every alarm of the flight, and of the same flight with a baro ramp injected,
+is the same with and without the watch. (A fused height below the ground is
+not near it: tests/test_monitor_baro_rebase.py's baro dive.)"""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from mavnav.sim.faults import parse_fault
 from mavnav.sinks.base import Sink
 from tests.support.paths import SHARED_FLIGHTLOGS
 
-BROWNOUT = SHARED_FLIGHTLOGS / "frs_battery_brownout.ulg"  # PX4, baro and INS only, on the ground at the start
+FLIGHT = SHARED_FLIGHTLOGS / "frs_gps_interference.ulg"  # PX4 1.x, starts on the ground at its datum
 
 
 class _Epochs(Sink):
@@ -33,7 +33,7 @@ class _Epochs(Sink):
 
 def _audit(watch: bool, fault=None):
     cfg = config_from_dict({"monitor": {"features": {"ground_effect_watch": watch}}})
-    samples = open_log(str(BROWNOUT), cfg.ingest)
+    samples = open_log(str(FLIGHT), cfg.ingest)
     if fault is not None:
         samples = SampleFaults([parse_fault(fault)]).apply(samples)
     sink = _Epochs()
@@ -49,14 +49,15 @@ def test_the_baro_cautions_on_the_ground_go_and_nothing_else_moves():
     on, alarms_on = _audit(True)
     caution_off = [(t, h) for t, h, st in off if st == "caution"]
     caution_on = [(t, h) for t, h, st in on if st == "caution"]
-    assert len(caution_off) >= 2  # the baro dips 6-8 m against the INS as the propellers spin up
+    assert len(caution_off) >= 3
     # each caution the watch takes away began where the fused height was within h_ge of the ground
     t0 = off[0][0]
     starts = [t for (t, _), prev in zip(caution_off, [None] + caution_off[:-1])
               if prev is None or t - prev[0] > 1.0]
     prev_h = {t: off[i - 1][1] for i, (t, _, _) in enumerate(off) if i}
-    assert all(prev_h[t] < h_ge for t in starts), [(t - t0, prev_h[t]) for t in starts]
-    assert len(caution_on) < len(caution_off) and len(caution_on) <= 0.01 * len(on)
+    waived = [t for t in starts if t not in {c[0] for c in caution_on}]
+    assert waived and all(abs(prev_h[t]) < h_ge for t in waived), [(t - t0, prev_h[t]) for t in waived]
+    assert len(caution_on) < len(caution_off)
     assert alarms_on == alarms_off
     # away from the ground the two runs are the same epoch for epoch
     assert [r for r in on if r[1] >= h_ge + 1.0] == [r for r in off if r[1] >= h_ge + 1.0]
@@ -67,7 +68,7 @@ def test_the_baro_cautions_on_the_ground_go_and_nothing_else_moves():
 @pytest.mark.parametrize("onset_rel_s", [3.0, 30.0])
 def test_a_baro_ramp_is_alarmed_as_soon_with_the_watch(onset_rel_s):
     cfg = config_from_dict({})
-    t0 = next(s.t_us for s in open_log(str(BROWNOUT), cfg.ingest) if getattr(s, "t_us", None) is not None) * 1e-6
+    t0 = next(s.t_us for s in open_log(str(FLIGHT), cfg.ingest) if getattr(s, "t_us", None) is not None) * 1e-6
     fault = f"baro_ramp:onset={t0 + onset_rel_s:.3f},duration=20,magnitude=0.5"
     _, alarms_off = _audit(False, fault)
     _, alarms_on = _audit(True, fault)
