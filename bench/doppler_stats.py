@@ -11,9 +11,10 @@ sample with ``window`` seconds of continuous data behind it:
   ``mavnav/monitor/doppler.py``);
 * ``baro-dop``: the same with the baro's height change, its latest sample
   carried to each GNSS sample;
-* ``baro-lvl``: the same as the monitor reads it (``mavnav/monitor/barolevel.py``):
-  at the window's start the median of the baro over ``monitor.baro_doppler_level_span_s``
-  centred there, at its end the median of its last ``baro_doppler_end_samples``;
+* ``baro-lvl``: the same as the monitor reads it with ``monitor.baro_doppler_level_span_s``
+  (``mavnav/monitor/barolevel.py``; 1 s where that is 0, off): at the window's start the
+  median of the baro over the span centred there, at its end the median of its last
+  ``baro_doppler_end_samples``;
 * ``gnss-baro``: the GNSS height change against the baro's.
 
 Printed as the 50th, 90th, 99th percentile and the maximum of the absolute
@@ -44,6 +45,7 @@ from mavnav.monitor.doppler import DopplerCheck  # noqa: E402
 from mavnav.samples import BaroHeight, GnssHeight  # noqa: E402
 
 MAX_GAP_S = 1.5
+LEVEL_SPAN_S = 1.0  # baro-lvl's span where monitor.baro_doppler_level_span_s is 0 (off)
 
 
 def _window_diffs(t, h, v, b, window_s):
@@ -68,7 +70,7 @@ def _window_diffs(t, h, v, b, window_s):
 def baro_levels(g: np.ndarray, b: np.ndarray, window_s: float, m) -> np.ndarray:
     """The baro/Doppler reading at every GNSS sample with a full window, the
     baro read through :class:`BaroLevel` as the monitor reads it."""
-    level = BaroLevel(m.baro_doppler_level_span_s, window_s, MAX_GAP_S, m.baro_doppler_end_samples)
+    level = BaroLevel(m.baro_doppler_level_span_s or LEVEL_SPAN_S, window_s, MAX_GAP_S, m.baro_doppler_end_samples)
     check = DopplerCheck(window_s, MAX_GAP_S)
     events = sorted([(t, 0, h) for t, h in b] + [(t, 1, v) for t, _, v in g])
     out = []
