@@ -1329,10 +1329,10 @@ class HypothesisLogic:
         downwash (ground effect) and a departure below a test's threshold is
         expected, not a suspicion. Failures still count; after a start away
         from the datum the ground is unknown and nothing is waived. A fused
-        height below the ground is not near it: that is a baro pulling the
-        output down, and a dive fault would waive its own suspicion (which is
-        also what keeps the level it pulled the channel to from being given
-        back as the baro's offset at readmission)."""
+        height more than that below the ground is not near it: that is a baro
+        pulling the output down, and a dive fault would waive its own
+        suspicion (which is also what keeps the level it pulled the channel
+        to from being given back as the baro's offset at readmission)."""
         h = self.last_fused_m
         return self.at_datum and abs(h) < self.m.ground_effect_height_m
 
