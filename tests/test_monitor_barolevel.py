@@ -110,6 +110,7 @@ def _dkla_series():
 
 
 @pytest.mark.realdata
+@pytest.mark.skipif(not DKLA.exists(), reason="no shared flight logs")
 def test_on_a_real_flight_spikes_in_the_baro_stay_out_of_the_reading_and_a_ramp_does_not():
     """dkla_log171 with a 3 m spike in one baro sample every 5 s: read from the
     median levels the baro/Doppler reading hardly moves; read from the latest

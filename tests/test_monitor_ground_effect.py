@@ -43,6 +43,7 @@ def _audit(watch: bool, fault=None):
 
 
 @pytest.mark.realdata
+@pytest.mark.skipif(not FLIGHT.exists(), reason="no shared flight logs")
 def test_the_baro_cautions_on_the_ground_go_and_nothing_else_moves():
     h_ge = config_from_dict({}).monitor.ground_effect_height_m
     off, alarms_off = _audit(False)
@@ -65,6 +66,7 @@ def test_the_baro_cautions_on_the_ground_go_and_nothing_else_moves():
 
 @pytest.mark.realdata
 @pytest.mark.slow
+@pytest.mark.skipif(not FLIGHT.exists(), reason="no shared flight logs")
 @pytest.mark.parametrize("onset_rel_s", [3.0, 30.0])
 def test_a_baro_ramp_is_alarmed_as_soon_with_the_watch(onset_rel_s):
     cfg = config_from_dict({})
