@@ -15,7 +15,13 @@ sample with ``window`` seconds of continuous data behind it:
   (``mavnav/monitor/barolevel.py``; 1 s where that is 0, off): at the window's start the
   median of the baro over the span centred there, at its end the median of its last
   ``baro_doppler_end_samples``;
-* ``gnss-baro``: the GNSS height change against the baro's.
+* ``gnss-baro``: the GNSS height change against the baro's;
+* ``scale``: the least-squares slope of ``baro-dop`` on the Doppler's
+  integral over the same windows, the fraction of the distance moved by which
+  the baro's height change falls short (negative) of the Doppler's or exceeds
+  it, on flights that moved at least ``MIN_MOVED_M`` within a window. The RMS
+  of these slopes over the modern receivers' flights sizes
+  ``monitor.baro_doppler_scale_frac``.
 
 Printed as the 50th, 90th, 99th percentile and the maximum of the absolute
 value, per flight and over all flights. These are the numbers that size
@@ -35,7 +41,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 
-from realflights import find_flights  # noqa: E402
+from realflights import find_flights, is_sitl  # noqa: E402
 
 from mavnav.config import config_from_dict  # noqa: E402
 from mavnav.errors import MavnavError  # noqa: E402
@@ -45,12 +51,13 @@ from mavnav.monitor.doppler import DopplerCheck  # noqa: E402
 from mavnav.samples import BaroHeight, GnssHeight  # noqa: E402
 
 MAX_GAP_S = 1.5
+MIN_MOVED_M = 2.0  # a flight's baro scale is read only if it moved this far within a window
 LEVEL_SPAN_S = 1.0  # baro-lvl's span where monitor.baro_doppler_level_span_s is 0 (off)
 
 
 def _window_diffs(t, h, v, b, window_s):
     """Per-sample statistics over ``window_s`` within runs without gaps."""
-    out = {"pos-dop": [], "baro-dop": [], "gnss-baro": []}
+    out = {"pos-dop": [], "baro-dop": [], "gnss-baro": [], "disp": []}
     runs = np.split(np.arange(t.size), np.nonzero(np.diff(t) > MAX_GAP_S)[0] + 1)
     for r in runs:
         if r.size < 3:
@@ -64,6 +71,7 @@ def _window_diffs(t, h, v, b, window_s):
         out["pos-dop"].append((hh[k] - hh[j]) - dint)
         out["baro-dop"].append((bb[k] - bb[j]) - dint)
         out["gnss-baro"].append((hh[k] - hh[j]) - (bb[k] - bb[j]))
+        out["disp"].append(dint)
     return {key: np.concatenate(v) if v else np.zeros(0) for key, v in out.items()}
 
 
@@ -108,6 +116,15 @@ def flight(path: str, window_s: float):
     return {"hz": len(g) / max(g[-1, 0] - g[0, 0], 1e-9), **d}
 
 
+def baro_scale(r) -> float:
+    """The slope of the baro/Doppler reading on the distance moved (NaN for a
+    flight that never moved ``MIN_MOVED_M`` within a window)."""
+    e, d = r["baro-dop"], r["disp"]
+    if d.size == 0 or np.abs(d).max() < MIN_MOVED_M:
+        return math.nan
+    return float(np.sum(e * d) / np.sum(d * d))
+
+
 def _q(e):
     return " ".join(f"{x:5.2f}" for x in np.percentile(np.abs(e), [50, 90, 99, 100]))
 
@@ -120,8 +137,9 @@ def main(argv=None) -> int:
     paths = args.paths or [str(p) for ps in find_flights().values() for p in ps]
     tot = {"pos-dop": [], "baro-dop": [], "baro-lvl": [], "gnss-baro": []}
     print(f"window {args.window:g} s; |e| percentiles 50/90/99/max (m)")
-    print("| flight | GNSS Hz | samples | pos-dop | baro-dop | baro-lvl | gnss-baro |")
-    print("|---|---|---|---|---|---|---|")
+    print("| flight | GNSS Hz | samples | pos-dop | baro-dop | baro-lvl | gnss-baro | scale |")
+    print("|---|---|---|---|---|---|---|---|")
+    scales = []
     for p in paths:
         try:
             r = flight(p, args.window)
@@ -130,9 +148,16 @@ def main(argv=None) -> int:
         if r is None:
             continue
         print(f"| {Path(p).name} | {r['hz']:.1f} | {r['pos-dop'].size} | {_q(r['pos-dop'])} | "
-              f"{_q(r['baro-dop'])} | {_q(r['baro-lvl'])} | {_q(r['gnss-baro'])} |")
+              f"{_q(r['baro-dop'])} | {_q(r['baro-lvl'])} | {_q(r['gnss-baro'])} | {baro_scale(r):+.3f} |")
+        if not is_sitl(Path(p)) and np.percentile(np.abs(r["pos-dop"]), 99) < 2.5:  # receivers true to themselves
+            scales.append(baro_scale(r))
         for k in tot:
             tot[k].append(r[k])
+    scales = np.asarray([x for x in scales if x == x])
+    if scales.size:
+        print(f"baro scale against the Doppler on {scales.size} real flights whose receiver keeps pos-dop within "
+              f"2.5 m (99th percentile) and that moved {MIN_MOVED_M:g} m or more: RMS {np.sqrt(np.mean(scales ** 2)):.3f}, "
+              f"mean {scales.mean():+.3f}, range {scales.min():+.3f} to {scales.max():+.3f}")
     for k, v in tot.items():
         if v:
             print(f"all flights, {k}: {_q(np.concatenate(v))}")

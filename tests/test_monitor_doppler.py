@@ -311,11 +311,11 @@ def test_a_ramp_after_a_landing_is_read_over_the_short_span_the_landing_is_not_i
     t = np.arange(0.0, 15.01, 0.2)
     v = np.where(t < 10.0, -2.0, 0.0)
     h = np.where(t < 10.0, 20.0 - 2.0 * t, 0.0) + np.where(t >= 10.0, 0.5 * (t - 10.0), 0.0)
-    check = DopplerCheck(10.0, 1.5, min_span_s=4.0, sigma_m=0.4, scale_frac=0.1)
+    check = DopplerCheck(10.0, 1.5, min_span_s=4.0, sigma_m=0.4, scale_frac=0.1, recent_span_s=4.0)
     e = dict(zip(np.round(t, 1), _series(check, t, h, v)))
     assert e[15.0] == pytest.approx(2.0, abs=0.05) and check.last_span_s == pytest.approx(4.0, abs=0.25)
     assert abs(check.last_disp_m) < 0.01 and check.error_m(check.last_disp_m) == pytest.approx(0.4)
-    whole = DopplerCheck(10.0, 1.5, sigma_m=0.4, scale_frac=0.1)
+    whole = DopplerCheck(10.0, 1.5, min_span_s=4.0, sigma_m=0.4, scale_frac=0.1)  # no recent span
     _series(whole, t, h, v)
     assert whole.last_span_s >= 10.0 and whole.error_m(whole.last_disp_m) > 1.0
     assert abs(whole.last_e_m) / whole.error_m(whole.last_disp_m) < abs(check.last_e_m) / 0.4 / 2

@@ -57,22 +57,26 @@ class DopplerCheck:
     velocity, restart the integral (no interpolation across a gap).
 
     With ``min_span_s`` the check reads from that span on (a window restarted
-    by a gap is not blind for most of its length). With a ``scale_frac`` too,
-    once the window is longer, it also reads over the latest ``min_span_s``
-    and keeps the reading larger against its own error, ``hypot(sigma_m,
-    scale_frac * distance moved)``, so a window that still holds a climb or a
-    landing does not hide a ramp that began after it."""
+    by a gap is not blind for most of its length). The reading's own error is
+    ``hypot(sigma_m, scale_frac * distance moved)``. With a ``recent_span_s``
+    shorter than the window, it also reads over the latest ``recent_span_s``
+    and keeps the reading larger against its own error, so a window that
+    still holds a climb or a landing does not hide a ramp that began after
+    it."""
 
-    __slots__ = ("window_us", "max_gap_us", "min_span_us", "sigma_m", "scale_frac", "hist", "last_e_m",
-                 "last_disp_m", "last_span_s", "last_us")
+    __slots__ = ("window_us", "max_gap_us", "min_span_us", "recent_span_us", "sigma_m", "scale_frac", "hist",
+                 "last_e_m", "last_disp_m", "last_span_s", "last_us")
 
     def __init__(self, window_s: float, max_gap_s: float, min_span_s: Optional[float] = None,
-                 sigma_m: float = 1.0, scale_frac: float = 0.0):
+                 sigma_m: float = 1.0, scale_frac: float = 0.0, recent_span_s: Optional[float] = None):
         self.window_us = int(window_s * 1e6)
         self.max_gap_us = int(max_gap_s * 1e6)
         # the shortest span that gives a reading (default 80 % of the window)
         self.min_span_us = (MIN_SPAN_FRAC * self.window_us if min_span_s is None
                             else min(min_span_s * 1e6, self.window_us))
+        # the latest span read beside the whole window (None: none)
+        self.recent_span_us = (None if not recent_span_s or recent_span_s * 1e6 >= 0.8 * self.window_us
+                               else recent_span_s * 1e6)
         self.sigma_m = sigma_m
         self.scale_frac = scale_frac
         self.hist: deque = deque()  # (t_us, height_m, vel_up_mps, integral_m)
@@ -109,10 +113,11 @@ class DopplerCheck:
             h_j = _or(start_m(t_j), h_j)
         e = (height_m - h_j) - (integral - i_j)
         disp = integral - i_j
-        if self.scale_frac > 0.0 and t_us - t_j > self.min_span_us and self.min_span_us < 0.8 * self.window_us:
-            # the latest short span too: the first entry at least min_span back
+        recent = self.recent_span_us
+        if recent is not None and t_us - t_j > recent:
+            # the latest short span too: the first entry at least recent_span back
             k = len(h) - 1
-            while k > 0 and t_us - h[k][0] < self.min_span_us:
+            while k > 0 and t_us - h[k][0] < recent:
                 k -= 1
             t_k, h_k, _, i_k = h[k]
             if start_m is not None:

@@ -263,7 +263,8 @@ class HypothesisLogic:
         self.baro_doppler = DopplerCheck(m.baro_doppler_window_s, m.doppler_max_gap_s,
                                          min_span_s=MIN_SPAN_FRAC * m.doppler_window_s,
                                          sigma_m=m.baro_doppler_sigma_m,
-                                         scale_frac=m.baro_doppler_scale_frac)
+                                         scale_frac=m.baro_doppler_scale_frac,
+                                         recent_span_s=m.baro_doppler_recent_span_s)
         self.scale["baro_doppler"] = ResidualScale(m.window_scale_tau_s, 1.0, sc[2], max_phi=0.0)
         self.baro_doppler_ex = Exceedance()
         # without a Doppler: the GNSS altitude's drift rate against the baro
