@@ -588,6 +588,17 @@ class MonitorConfig(_Section):
     baro_jump_reference_samples: int = Field(5, ge=1)
     # The raw GNSS - rangefinder check (monitor/rawcheck.py) averages this long.
     raw_check_window_s: float = Field(1.0, gt=0)
+    # The operator's word that the ground under the rangefinder lies at the
+    # reference elevation (a flight over a known flat field: the paper's
+    # premise). A start on the ground at the datum shows it; a flight joined
+    # in the air does not, and without this word the ground is what one
+    # window of the raw check places, no better than the GNSS, so the
+    # rangefinder's absolute height carries that uncertainty
+    # (monitor/rawcheck.py) and such a flight is mostly unavailable against a
+    # 4 m alert limit. With it, a flight joined in the air keeps the ground at
+    # the reference as known, and a raw GNSS - rangefinder difference there is
+    # a fault, as at the datum.
+    ground_at_reference: bool = False
     # The measured scale of each test's normalised residuals (monitor/scale.py):
     # forgetting time, and how far the data may sharpen (min) or dull (max) a
     # test against the filters' own covariance.

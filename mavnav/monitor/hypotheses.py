@@ -190,7 +190,8 @@ class HypothesisLogic:
                                      m.baro_u_memory_s, m.baro_u_min_samples, m.baro_u_outlier_sigma,
                                      m.baro_u_significance_sigma, m.median_scale_update_s, m.residual_scale_max)
         self.ins_ex = Exceedance()  # baro/INS readings past its threshold and its suspect level
-        self.raw_check = RawAuxCheck(window_s=m.raw_check_window_s, k=self.k_cmp, learn_ground=not at_datum)
+        self.raw_check = RawAuxCheck(window_s=m.raw_check_window_s, k=self.k_cmp,
+                                     learn_ground=not (at_datum or m.ground_at_reference))
         self.at_datum = at_datum  # the start on the ground at the datum: the ground's height is known there
         self.last_fused_m = math.nan
         self.refused: deque = deque()  # (t_us, kind, value_m, min_m, max_m, cos_tilt)

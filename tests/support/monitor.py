@@ -34,7 +34,9 @@ def cfg_for(mode="adaptive", **features):
                     # the synthetic GNSS error is white: no Gauss-Markov state
                     "gnss": {"sigma_z_m": s.sigma_z_m, "use_v_acc": False, "gm_sigma_m": 0.0},
                     "rangefinder": {"sigma_m": s.sigma_rng_m, "scale_sigma_frac": 0.0}},
-        "monitor": {"mode": mode, "features": features},
+        # the paper's premise: the ground under the rangefinder is at the reference
+        # (these flights start in the air, at 10 m, over it)
+        "monitor": {"mode": mode, "features": features, "ground_at_reference": True},
     })
 
 
