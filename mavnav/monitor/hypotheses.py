@@ -1369,8 +1369,12 @@ class HypothesisLogic:
         cleared = {n: self.trackers[n].state == "nominal" or
                    (self.trackers[n].state == "caution" and n not in self._held(j)) for n in SENSOR_SOURCES}
         baro_ok = cleared[BARO_INS_S] and avail[BARO]
+        # the rangefinder's height is above the reference only once its ground is
+        # placed (a start at the datum, the operator's word, or the raw check's
+        # first window against the GNSS: monitor/rawcheck.py)
         used = (avail[GNSS] and cleared[GNSS_S] and (baro_ok or not bank.baro_on[GNSS]),
-                avail[RNG] and cleared[RANGEFINDER_S] and (baro_ok or not bank.baro_on[RNG]),
+                avail[RNG] and cleared[RANGEFINDER_S] and (baro_ok or not bank.baro_on[RNG])
+                and self.raw_check.ground_m is not None,
                 baro_ok)
         idx = [c for c in range(3) if used[c]]
         h, sigma, vpl = math.nan, math.nan, math.nan

@@ -46,7 +46,9 @@ ground no sensor has placed has no height above the reference that the
 evidence can bound to the alert limit. The simulated flights joined in the
 air over flat ground at the reference lost their availability with it
 (inflight_start 80 -> 0 %, descent_above_max 41 -> 0 %): the same evidence,
-the ground right only by the scenario's construction.
+the ground right only by the scenario's construction. Until the ground is
+placed (``ground_m`` None: the first window not yet full, or no GNSS at all)
+the rangefinder's height stays out of the fused height.
 """
 
 from __future__ import annotations
