@@ -11,7 +11,8 @@ Every test has a kind, a marker (a live replay of a shared log has two):
   alarm, Monte Carlo);
 * ``integration``: real sockets, processes, a browser, MAVProxy, a Dask
   cluster, the CLI as a subprocess;
-* ``realdata``: the shared real logs in ``../shared`` (read in place);
+* ``realdata``: the shared real logs in ``../shared`` (read in place;
+  skipped, saying so, where they are not beside the checkout);
 * ``golden``: behaviour unchanged, byte for byte: ``mavnav audit`` of the
   repository's own ``sitl_logs/`` against the JSON, CSV and table stored in
   ``tests/golden/`` (a few seconds, in the fast lane; ``make golden``
@@ -35,7 +36,7 @@ from __future__ import annotations
 import pytest
 
 from tests.support.emit import Peer
-from tests.support.paths import SCENARIOS
+from tests.support.paths import SCENARIOS, SHARED
 
 KINDS = ("unit", "property", "simulation", "integration", "realdata", "golden")
 
@@ -48,6 +49,8 @@ def pytest_collection_modifyitems(config, items):
         kinds = [k for k in KINDS if item.get_closest_marker(k) is not None]
         if not kinds:
             item.add_marker(pytest.mark.unit)
+        if "realdata" in kinds and not SHARED.is_dir():
+            item.add_marker(pytest.mark.skip(reason=f"the shared real logs are not beside the checkout ({SHARED})"))
 
 
 @pytest.fixture
