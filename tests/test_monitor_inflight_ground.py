@@ -178,6 +178,32 @@ def test_ground_near_the_reference_under_a_flight_joined_in_the_air_is_no_hazard
     assert sum(s["hazardous_s"] for s in scores()) > 30.0
 
 
+def _joined_at_25_m(ground_m: float = 0.0, gnss: bool = True):
+    """px4_inflight_start hovering at 25 m over ground ``ground_m`` above the
+    reference (seed 1): its samples (without the GNSS's if not ``gnss``) and
+    the truth's times and heights."""
+    from mavnav.samples import GnssHeight
+
+    d = yaml.safe_load(SCENARIO.read_text())
+    d["trajectory"]["height_m"] = 25.0
+    if ground_m:
+        d["terrain"] = [{"from_s": 0.0, "to_s": d["duration_s"] + 1.0, "height_m": ground_m}]
+    res = simulate(scenario_from_dict(d), seed=1)
+    samples = [s for s in I.ingest(res.tlog) if gnss or not isinstance(s, GnssHeight)]
+    return samples, np.asarray(res.truth["t_s"], dtype=float), np.asarray(res.truth["true_height_ref_m"], dtype=float)
+
+
+def _usable_error(samples, t_truth, h_truth, declared: bool):
+    """The fused height's error where the overall state is usable, and how
+    many epochs there were, with or without monitor.ground_at_reference."""
+    sink = I._Collect()
+    run(samples, config_from_dict({"sensors": SensorsConfig().model_dump(),
+                                   "monitor": {"ground_at_reference": declared}}), [sink])
+    usable = np.isin(np.asarray(sink.overall), ["nominal", "caution"])
+    err = np.asarray(sink.h, dtype=float) - np.interp(np.asarray(sink.t), t_truth, h_truth)
+    return err[usable], usable.size
+
+
 @pytest.mark.slow
 def test_over_ground_the_operator_declares_at_the_reference_a_flight_joined_in_the_air_is_available():
     """px4_inflight_start (hovering at 25 m over flat ground at the reference):
@@ -186,25 +212,11 @@ def test_over_ground_the_operator_declares_at_the_reference_a_flight_joined_in_t
     unavailable; with monitor.ground_at_reference (the operator's word, the
     paper's premise) the rangefinder's absolute height is in the output and
     it is available for most of the flight, within 1 m of the truth."""
-    d = yaml.safe_load(SCENARIO.read_text())
-    d["trajectory"]["height_m"] = 25.0
-    res = simulate(scenario_from_dict(d), seed=1)
-    t_truth = np.asarray(res.truth["t_s"], dtype=float)
-    h_truth = np.asarray(res.truth["true_height_ref_m"], dtype=float)
-    samples = I.ingest(res.tlog)
-
-    def fly(declared: bool):
-        sink = I._Collect()
-        run(samples, config_from_dict({"sensors": SensorsConfig().model_dump(),
-                                       "monitor": {"ground_at_reference": declared}}), [sink])
-        usable = np.isin(np.asarray(sink.overall), ["nominal", "caution"])
-        err = np.asarray(sink.h, dtype=float) - np.interp(np.asarray(sink.t), t_truth, h_truth)
-        return float(np.mean(usable)), err[usable]
-
-    share, _ = fly(False)
-    assert share < 0.05
-    share, err = fly(True)
-    assert share > 0.6 and float(np.max(np.abs(err))) < 1.0
+    flight = _joined_at_25_m()
+    err, n = _usable_error(*flight, declared=False)
+    assert err.size < 0.05 * n
+    err, n = _usable_error(*flight, declared=True)
+    assert err.size > 0.6 * n and float(np.max(np.abs(err))) < 1.0
 
 
 @pytest.mark.slow
@@ -215,25 +227,8 @@ def test_without_a_gnss_a_flight_joined_in_the_air_puts_no_rangefinder_height_in
     alone is then unavailable). Taken at the reference, as the operator may
     declare (and as mavnav did without a GNSS until session 23), the output
     sits 5 m off at nominal for most of the flight."""
-    from mavnav.samples import GnssHeight
-
-    d = yaml.safe_load(SCENARIO.read_text())
-    d["trajectory"]["height_m"] = 25.0
-    d["terrain"] = [{"from_s": 0.0, "to_s": d["duration_s"] + 1.0, "height_m": 5.0}]
-    res = simulate(scenario_from_dict(d), seed=1)
-    t_truth = np.asarray(res.truth["t_s"], dtype=float)
-    h_truth = np.asarray(res.truth["true_height_ref_m"], dtype=float)
-    samples = [s for s in I.ingest(res.tlog) if not isinstance(s, GnssHeight)]
-
-    def fly(declared: bool):
-        sink = I._Collect()
-        run(samples, config_from_dict({"sensors": SensorsConfig().model_dump(),
-                                       "monitor": {"ground_at_reference": declared}}), [sink])
-        usable = np.isin(np.asarray(sink.overall), ["nominal", "caution"])
-        err = np.asarray(sink.h, dtype=float) - np.interp(np.asarray(sink.t), t_truth, h_truth)
-        return err[usable], usable.size
-
-    err, n = fly(False)
+    flight = _joined_at_25_m(5.0, gnss=False)
+    err, n = _usable_error(*flight, declared=False)
     assert err.size == 0 or float(np.max(np.abs(err))) < 3.0
-    err, n = fly(True)
+    err, n = _usable_error(*flight, declared=True)
     assert err.size > 0.5 * n and float(np.median(np.abs(err))) > 4.0
