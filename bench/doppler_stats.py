@@ -52,6 +52,9 @@ from mavnav.samples import BaroHeight, GnssHeight  # noqa: E402
 
 MAX_GAP_S = 1.5
 MIN_MOVED_M = 2.0  # a flight's baro scale is read only if it moved this far within a window
+# ...and enters the summary only if its receiver keeps pos-dop within this (99th percentile):
+# a Doppler true to its own altitude is the reference the baro's scale is read against
+TRUE_RECEIVER_M = 2.5
 LEVEL_SPAN_S = 1.0  # baro-lvl's span where monitor.baro_doppler_level_span_s is 0 (off)
 
 
@@ -149,14 +152,14 @@ def main(argv=None) -> int:
             continue
         print(f"| {Path(p).name} | {r['hz']:.1f} | {r['pos-dop'].size} | {_q(r['pos-dop'])} | "
               f"{_q(r['baro-dop'])} | {_q(r['baro-lvl'])} | {_q(r['gnss-baro'])} | {baro_scale(r):+.3f} |")
-        if not is_sitl(Path(p)) and np.percentile(np.abs(r["pos-dop"]), 99) < 2.5:  # receivers true to themselves
+        if not is_sitl(Path(p)) and np.percentile(np.abs(r["pos-dop"]), 99) < TRUE_RECEIVER_M:
             scales.append(baro_scale(r))
         for k in tot:
             tot[k].append(r[k])
     scales = np.asarray([x for x in scales if x == x])
     if scales.size:
         print(f"baro scale against the Doppler on {scales.size} real flights whose receiver keeps pos-dop within "
-              f"2.5 m (99th percentile) and that moved {MIN_MOVED_M:g} m or more: RMS {np.sqrt(np.mean(scales ** 2)):.3f}, "
+              f"{TRUE_RECEIVER_M:g} m (99th percentile) and that moved {MIN_MOVED_M:g} m or more: RMS {np.sqrt(np.mean(scales ** 2)):.3f}, "
               f"mean {scales.mean():+.3f}, range {scales.min():+.3f} to {scales.max():+.3f}")
     for k, v in tot.items():
         if v:

@@ -75,7 +75,7 @@ class DopplerCheck:
         self.min_span_us = (MIN_SPAN_FRAC * self.window_us if min_span_s is None
                             else min(min_span_s * 1e6, self.window_us))
         # the latest span read beside the whole window (None: none)
-        self.recent_span_us = (None if not recent_span_s or recent_span_s * 1e6 >= 0.8 * self.window_us
+        self.recent_span_us = (None if not recent_span_s or recent_span_s * 1e6 >= MIN_SPAN_FRAC * self.window_us
                                else recent_span_s * 1e6)
         self.sigma_m = sigma_m
         self.scale_frac = scale_frac
