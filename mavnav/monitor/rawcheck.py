@@ -8,7 +8,8 @@ with the baro or the INS: if they agree, an aux sensor is not the culprit.
 Rangefinder heights are above the ground, GNSS heights above the reference;
 the paper's flat-ground assumption is made here too, as in the rangefinder
 channel itself: the ground is where the vehicle stood. A start on the ground
-at the datum puts it at the reference. A start anywhere else (a log or a link
+at the datum puts it at the reference, as does the operator's word
+(``monitor.ground_at_reference``: ``learn_ground`` False). A start anywhere else (a log or a link
 joined in flight) says nothing of where the ground lies against the
 reference, so the check learns it: the mean difference of its first full
 window, where it departs from zero by more than the test's own threshold,
