@@ -28,14 +28,9 @@ vehicle moves are compared at one time: a level at a GNSS sample's time
 from __future__ import annotations
 
 import math
+import statistics
 from collections import deque
 from typing import Optional
-
-
-def _median(vals: list) -> float:
-    vals.sort()
-    n = len(vals)
-    return vals[n // 2] if n % 2 else 0.5 * (vals[n // 2 - 1] + vals[n // 2])
 
 
 class BaroLevel:
@@ -101,7 +96,7 @@ class BaroLevel:
             if t_b <= t_us - self.span_us or len(vals) == self.end_count:
                 break
             vals.append(x)
-        return _median(vals) + self._j_at(t_us) if vals else None
+        return statistics.median(vals) + self._j_at(t_us) if vals else None
 
     def centred_m(self, t_us: int) -> Optional[float]:
         """The level at an earlier GNSS sample's time ``t_us``: the median of
@@ -112,4 +107,4 @@ class BaroLevel:
             return None
         half = self.span_us // 2
         vals = [x for t_b, x in self.r if t_us - half < t_b <= t_us + half]
-        return _median(vals) + j if vals else None
+        return statistics.median(vals) + j if vals else None

@@ -34,6 +34,7 @@ from typing import Optional
 
 from .doppler import MIN_SPAN_FRAC, restart_on_gap, window_first
 
+
 def gm_slope_var_factor(gamma_per_s: float, window_s: float) -> float:
     """The variance of the least-squares slope over ``window_s`` of a
     stationary first-order Gauss-Markov process, per unit of its variance
