@@ -379,3 +379,14 @@ def test_a_4_hz_imu_makes_monitoring_degraded_and_no_sensor_faulty():
     assert not [a for a in r["alarms"] if a["state"] == "alarm"], r["alarms"]
     assert r["availability"]["input"]["unavailable"] > 0.9  # monitoring degraded, said as such
     assert not [a for a in r["alarms"] if "INS" in a["reason"]], r["alarms"]
+
+
+def test_the_isolation_and_the_sudden_jump_hold_for_their_own_times():
+    # the sudden-jump rule's persistence once overwrote the isolation's (equal by default)
+    from mavnav.config import config_from_dict
+    from mavnav.monitor.core import Monitor
+
+    cfg = config_from_dict({"monitor": {"persist_s": 0.7, "sudden_jump_persist_s": 0.3}})
+    logic = Monitor(cfg).logic
+    assert logic.persist_us == 700_000
+    assert logic.sudden_persist_us == 300_000

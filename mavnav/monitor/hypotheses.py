@@ -147,7 +147,7 @@ class HypothesisLogic:
         self.coast_us = int(m.coast_reinit_s * 1e6)
         self.hold_restart_us = int(m.hold_restart_s * 1e6)
         self.warmup_us = int(m.warmup_s * 1e6)
-        self.persist_us = int(m.sudden_jump_persist_s * 1e6)
+        self.sudden_persist_us = int(m.sudden_jump_persist_s * 1e6)
         self.kink_margin = chi2_gate(m.kink_isolation_prob)
         self.t0_us = 0
         self.glitch_restarts = 0  # starts again on a baro glitch, over this logic's life (reported by the audit)
@@ -498,7 +498,8 @@ class HypothesisLogic:
             return  # the channel started again since the last sample: nothing to jump from
         held = self.sudden.get(name)
         if held is not None and t > held.t_us:
-            held.follow(t, r, self.m.sudden_jump_persist_frac, self.persist_us, self.m.sudden_jump_persist_samples)
+            held.follow(t, r, self.m.sudden_jump_persist_frac, self.sudden_persist_us,
+                        self.m.sudden_jump_persist_samples)
         js = self.jump_scale[name]
         scale = math.hypot(sd, self.last_sd_m[name])
         if self.f.sudden_jump_measured and js.sd is not None:
