@@ -311,6 +311,10 @@ class EpochBuilder:
         # IMU samples not yet taken (see _take_imu): times and specific forces
         self._raw_t: list[int] = []
         self._raw_f: list[float] = []
+        # or, before them, samples lo .. hi - 1 of an IMU run's array columns
+        # (``[t_arr, f_arr, lo, hi]``, see :meth:`_on_imu_run`): the kernel takes
+        # them as views, no list between (only while ``_raw_t`` is empty)
+        self._span: Optional[list] = None
         # the samples taken, of which the first holds at the last epoch: a deque of
         # (t_us, f_up) for the reference, arrays (_ht, _hf)[:_hn] for the kernel
         self._imu: deque[tuple[int, float]] = deque()
@@ -413,6 +417,8 @@ class EpochBuilder:
             self.counters["imu_not_increasing"] += 1
             return []
         self._last_imu_t = t_us
+        if self._span is not None:
+            self._span_to_lists()
         raw = self._raw_t
         raw.append(t_us)
         self._raw_f.append(f_up)
@@ -437,13 +443,16 @@ class EpochBuilder:
             out.append(self._forced_epoch(t_us))
         return out
 
-    def _on_imu_run(self, ts: list, fs: list, i: int, j: int) -> tuple[int, list[Epoch]]:
+    def _on_imu_run(self, ts: list, fs: list, i: int, j: int, t_arr=None, f_arr=None) -> tuple[int, list[Epoch]]:
         """:meth:`_on_imu` over the samples ``ts[i:j]``, ``fs[i:j]`` (times
         strictly increasing), up to the first that completes an epoch:
         ``(k, epochs)``, samples ``i .. k - 1`` taken and the epochs the last
         of them completed (at most ``_RAW_MAX`` samples per call). The same
         state and epochs as :meth:`_on_imu` sample by sample
-        (``tests/test_ingest_imu_runs.py``)."""
+        (``tests/test_ingest_imu_runs.py``). ``t_arr``, ``f_arr``: the same
+        columns as int64 and float64 arrays, if there are any; the samples
+        then wait as a span of them (views for :meth:`_imu_pass`) while
+        they follow one another in the columns."""
         last_t = self._last_imu_t
         if last_t is not None and ts[i] <= last_t:  # not increasing: counted, as one sample
             return i + 1, self._on_imu(ts[i], fs[i])
@@ -462,12 +471,21 @@ class EpochBuilder:
         ends = k <= j
         if not ends:
             k = j
-        self._raw_t += ts[i:k]
-        self._raw_f += fs[i:k]
+        span = self._span
+        if span is not None and span[0] is t_arr and span[3] == i:
+            span[3] = k  # the next samples of the same columns
+        elif t_arr is not None and not self._raw_t and span is None:
+            self._span = span = [t_arr, f_arr, i, k]
+        else:
+            if span is not None:
+                self._span_to_lists()
+                span = None
+            self._raw_t += ts[i:k]
+            self._raw_f += fs[i:k]
         t_us = ts[k - 1]
         self._last_imu_t = t_us
         if not ends:
-            if not pending and len(self._raw_t) >= _RAW_MAX:
+            if not pending and (span[3] - span[2] if span is not None else len(self._raw_t)) >= _RAW_MAX:
                 self._take_imu()
             return k, []
         out: list[Epoch] = []
@@ -477,10 +495,18 @@ class EpochBuilder:
             out.append(self._forced_epoch(t_us))
         return k, out
 
+    def _span_to_lists(self) -> None:
+        """The samples waiting as a span of run columns moved into ``_raw_t``/``_raw_f``
+        (which are empty while there is a span), in order."""
+        t_arr, f_arr, lo, hi = self._span
+        self._span = None
+        self._raw_t += t_arr[lo:hi].tolist()
+        self._raw_f += f_arr[lo:hi].tolist()
+
     def _take_imu(self) -> None:
         """Take the IMU samples waiting in ``_raw_t``/``_raw_f`` (see :meth:`_take_imu_reference`)."""
         if self._compiled:
-            if self._raw_t:
+            if self._raw_t or self._span is not None:
                 self._imu_pass(False, 0)
         else:
             self._take_imu_reference()
@@ -488,17 +514,23 @@ class EpochBuilder:
     def _imu_pass(self, integrate: bool, t_end: int) -> tuple[float, float, float]:
         """:func:`imu_kernel` over the samples waiting and those held."""
         rt, rf = self._raw_t, self._raw_f
-        need = self._hn + len(rt)
+        span = self._span
+        if span is not None:  # (``rt`` empty): views of the run's columns, the values np.fromiter gives
+            self._span = None
+            t_arr, f_arr, lo, hi = span
+            at, af = t_arr[lo:hi], f_arr[lo:hi]
+        else:
+            n = len(rt)
+            at, af = np.fromiter(rt, np.int64, n), np.fromiter(rf, np.float64, n)  # np.array's values, sooner
+        need = self._hn + at.shape[0]
         if need > self._ht.shape[0]:
             cap = max(2 * self._ht.shape[0], need)
             ht, hf = np.empty(cap, np.int64), np.empty(cap, np.float64)
             ht[:self._hn] = self._ht[:self._hn]
             hf[:self._hn] = self._hf[:self._hn]
             self._ht, self._hf = ht, hf
-        n = len(rt)
         hn, unknown_us, unknown, dp, dv, var = imu_kernel(
-            np.fromiter(rt, np.int64, n), np.fromiter(rf, np.float64, n),  # np.array's values, sooner
-            self._ht, self._hf, self._hn, self._ks, self._ki,
+            at, af, self._ht, self._hf, self._hn, self._ks, self._ki,
             self._epoch_t is not None, integrate, self._epoch_t if integrate else 0, t_end, *self._kparams)
         rt.clear()
         rf.clear()
@@ -516,6 +548,8 @@ class EpochBuilder:
         already carries; the running mean may go negative, it is used clamped
         at 0), the IMU cadence, and the hold queue (only the latest sample
         before the first epoch)."""
+        if self._span is not None:
+            self._span_to_lists()
         raw = list(zip(self._raw_t, self._raw_f))
         if not raw:
             return

@@ -79,9 +79,9 @@ def run(
     try:
         for s in source:
             if type(s) is ImuRun:  # no home-frame change (not a height), not a reboot
-                ts, fs, i, j = s.t_us, s.f_up, s.lo, s.hi
+                ts, fs, i, j, ta, fa = s.t_us, s.f_up, s.lo, s.hi, s.t_arr, s.f_arr
                 while i < j:
-                    k, done = push_run(ts, fs, i, j)
+                    k, done = push_run(ts, fs, i, j, ta, fa)
                     run_out(s, i, k)
                     i = k
                     if done:

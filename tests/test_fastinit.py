@@ -8,13 +8,14 @@ import math
 
 import pytest
 
-from mavnav import report, samples
+from mavnav import bank, channel, report, samples
 from mavnav.fastinit import fast_frozen_init
 from mavnav.monitor import table, verdict
 
 PATCHED = [samples.SpecificForceUp, samples.BaroHeight, samples.GnssHeight, samples.RangeHeight,
            samples.AutopilotHeight, samples.Rejected, report.ChannelReport, report.PairReport,
-           report.SourceStatus, report.EpochReport, report.AlarmEvent, verdict.Verdict, table.Judgement]
+           report.SourceStatus, report.EpochReport, report.AlarmEvent, verdict.Verdict, table.Judgement,
+           channel.AuxMeasurement, channel.EpochInputs, bank.BankStep]
 
 
 def _values(cls, k: int) -> list:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from mavnav.audit import AuditSink, audit_file
@@ -152,22 +153,31 @@ def test_audit_through_runs_equals_the_per_sample_audit(monkeypatch):
     assert fast == ref
 
 
-def _builder_pair(samples, j_max=None):
+def _builder_pair(samples, j_max=None, arrays=False):
     """Epochs, counters and state of an EpochBuilder fed ``samples`` one by one,
     and of one fed the IMU stretches through ``_on_imu_run`` (at most ``j_max``
-    samples offered per call)."""
+    samples offered per call). With ``arrays``, as an onboard source offers
+    them: every stretch a range of the same columns, lists and arrays (the
+    builder keeps spans of the arrays)."""
     cfg = config_from_dict({})
     one, many = EpochBuilder(cfg), EpochBuilder(cfg)
     eps_one, eps_many = [], []
+    stretches = [s for s in samples if isinstance(s, list)]
+    all_t, all_f = [t for s in stretches for t, _ in s], [f for s in stretches for _, f in s]
+    t_arr, f_arr = np.array(all_t, dtype=np.int64), np.array(all_f, dtype=np.float64)
+    at = 0  # the first column index of the next stretch
     for s in samples:
         if isinstance(s, list):  # an IMU stretch
             for t, f in s:
                 eps_one += one.push(SpecificForceUp(t, t * 1e-6, 0, f, "imu"))
-            ts, fs = [t for t, _ in s], [f for _, f in s]
-            i = 0
-            while i < len(ts):
-                j = len(ts) if j_max is None else min(len(ts), i + j_max)
-                k, eps = many._on_imu_run(ts, fs, i, j)
+            if arrays:
+                ts, fs, i, end, cols = all_t, all_f, at, at + len(s), (t_arr, f_arr)
+            else:
+                ts, fs, i, end, cols = [t for t, _ in s], [f for _, f in s], 0, len(s), ()
+            at += len(s)
+            while i < end:
+                j = end if j_max is None else min(end, i + j_max)
+                k, eps = many._on_imu_run(ts, fs, i, j, *cols)
                 assert i < k <= j
                 eps_many += eps
                 i = k
@@ -176,6 +186,8 @@ def _builder_pair(samples, j_max=None):
             eps_many += many.push(s)
 
     def state(b):
+        if b._span is not None:
+            b._span_to_lists()  # the samples waiting, as lists
         return (b.counters, b._raw_t, b._raw_f, b._last_imu_t, b._epoch_t, b._ht[:b._hn].tolist(),
                 b._hf[:b._hn].tolist(), b._ks.tolist(), b._ki.tolist())
 
@@ -230,6 +242,34 @@ def test_builder_runs_equal_the_samples_one_by_one():
 def test_builder_runs_offered_in_short_slices():
     one, many = _builder_pair(_synthetic(), j_max=7)
     assert one == many
+
+
+@pytest.mark.parametrize("j_max", [None, 7, 300])
+def test_builder_runs_as_array_spans(j_max):
+    """The IMU stretches as ranges of one pair of array columns (the source's
+    runs): the samples wait as views of them, not lists; the same epochs and state."""
+    one, many = _builder_pair(_synthetic(), j_max=j_max, arrays=True)
+    assert one == many
+
+
+def test_builder_spans_waiting_then_one_sample():
+    """A span waiting when a sample comes one by one: the span goes into the
+    lists first, in order."""
+    cfg = config_from_dict({})
+    one, many = EpochBuilder(cfg), EpochBuilder(cfg)
+    ts = [1_000_000 + 5000 * k for k in range(30)]
+    fs = [9.81 + 0.01 * k for k in range(30)]
+    t_arr, f_arr = np.array(ts, dtype=np.int64), np.array(fs)
+    for b in (one, many):
+        b.push(BaroHeight(ts[3] - 1, (ts[3] - 1) * 1e-6, 0, 0.0, 101325.0, 1))
+    for t, f in zip(ts, fs):
+        one.push(SpecificForceUp(t, t * 1e-6, 0, f, "imu"))
+    many._on_imu_run(ts, fs, 0, 20, t_arr, f_arr)
+    assert many._span is not None and not many._raw_t
+    for t, f in zip(ts[20:], fs[20:]):
+        many.push(SpecificForceUp(t, t * 1e-6, 0, f, "imu"))
+    assert many._span is None
+    assert (one._raw_t, one._raw_f, one._ht[:one._hn].tolist()) == (many._raw_t, many._raw_f, many._ht[:many._hn].tolist())
 
 
 def test_builder_run_comparison_can_fail():

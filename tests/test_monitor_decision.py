@@ -90,6 +90,21 @@ def test_window_status_is_status_with_the_window_fields():
             assert _same(tr.window_status(stat, hi, rej), ref)
 
 
+def test_window_status_without_a_test_is_kept_until_it_changes():
+    tr = SourceTracker(GNSS, 1_000_000, 0)
+    a = tr.window_status(math.nan, math.nan, 0)
+    assert tr.window_status(math.nan, math.nan, 0) is a  # nothing changed: the same object
+    b = tr.window_status(math.nan, math.nan, 1)  # a rejection more
+    assert b is not a and b.rejected == 1
+    tr.set("caution", 2_000_000, "x")
+    c = tr.window_status(math.nan, math.nan, 1)
+    assert _same(c, tr.status(window_stat=math.nan, window_low=math.nan, window_high=math.nan, rejected=1))
+    tr.set("caution", 3_000_000, "y")  # the same state, another reason
+    assert tr.window_status(math.nan, math.nan, 1).reason == "y"
+    assert _same(tr.window_status(1.0, 2.0, 1), tr.status(window_stat=1.0, window_low=math.nan, window_high=2.0,
+                                                          rejected=1))
+
+
 def test_live_hypotheses_kept_answers_are_the_rule():
     for excluded in (set(), {GNSS}, {BARO_INS}, {GNSS, RANGEFINDER}, {BARO_INS, INPUT}, {GNSS, RANGEFINDER, BARO_INS}):
         want = frozenset(h for h in HYPOTHESES if h is INS or REPORT_SOURCE[h] not in excluded)

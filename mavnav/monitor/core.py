@@ -168,13 +168,15 @@ class Monitor:
             self._input_event("nominal", f"link recovered after {s.outage_s:.1f} s")
         return self._epochs(self.builder.push(s))
 
-    def push_run(self, ts: list, fs: list, i: int, j: int) -> tuple[int, list[tuple[EpochReport, list[AlarmEvent]]]]:
+    def push_run(self, ts: list, fs: list, i: int, j: int, t_arr=None,
+                 f_arr=None) -> tuple[int, list[tuple[EpochReport, list[AlarmEvent]]]]:
         """:meth:`push` of the IMU samples ``ts[i:j]``, ``fs[i:j]`` (an
         :class:`~mavnav.ingest.onboard.imurun.ImuRun`'s columns, times strictly
-        increasing) up to the first that completes an epoch: ``(k, epochs)``,
-        samples ``i .. k - 1`` consumed and the epochs the last of them
-        completed, as :meth:`push` of each in turn would return them."""
-        k, eps = self.builder._on_imu_run(ts, fs, i, j)
+        increasing; ``t_arr``, ``f_arr`` its array columns, if any) up to the
+        first that completes an epoch: ``(k, epochs)``, samples ``i .. k - 1``
+        consumed and the epochs the last of them completed, as :meth:`push`
+        of each in turn would return them."""
+        k, eps = self.builder._on_imu_run(ts, fs, i, j, t_arr, f_arr)
         q = self._imu_times  # RateMeter.push of each, at once: the window ends at the last
         q += ts[i:k]
         limit = ts[k - 1] - _RATE_WINDOW_US

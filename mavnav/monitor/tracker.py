@@ -21,6 +21,10 @@ class SourceTracker:
         self.clear_us = clear_us
         self._clean_since: Optional[int] = None
         self._status: Optional[SourceStatus] = None  # built once per change of state or reason
+        # window_status with no test shown (NaN statistic and threshold): the same
+        # (frozen) object until the state, its start, the reason or the rejections change
+        self._idle_key: Optional[tuple] = None
+        self._idle: Optional[SourceStatus] = None
 
     def set(self, state: str, t_us: int, reason: str) -> Optional[AlarmEvent]:
         if state == self.state:
@@ -51,6 +55,14 @@ class SourceTracker:
 
     def window_status(self, window_stat: float, window_high: float, rejected: int) -> SourceStatus:
         """``status(window_stat=..., window_low=NaN, window_high=..., rejected=...)``,
-        built positionally (once per source per epoch)."""
+        built positionally (once per source per epoch); with no test shown (a NaN
+        statistic and threshold, a source without data or out) once per change."""
+        if window_stat != window_stat and window_high != window_high:
+            key = (self.state, self.since_us, self.reason, rejected)
+            if key != self._idle_key:
+                self._idle_key = key
+                self._idle = SourceStatus(self.state, self.since_us * 1e-6, self.reason,  # type: ignore[arg-type]
+                                          NAN, NAN, NAN, rejected)
+            return self._idle  # type: ignore[return-value]
         return SourceStatus(self.state, self.since_us * 1e-6, self.reason,  # type: ignore[arg-type]
                             window_stat, NAN, window_high, rejected)

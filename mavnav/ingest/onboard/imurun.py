@@ -19,7 +19,10 @@ dropped duplicates and samples out of order), as every consumer assumes.
 
 from __future__ import annotations
 
-from typing import List
+from typing import TYPE_CHECKING, List, Optional
+
+if TYPE_CHECKING:
+    import numpy as np
 
 from ...samples import SpecificForceUp
 
@@ -27,16 +30,21 @@ from ...samples import SpecificForceUp
 class ImuRun:
     """Samples ``lo .. hi - 1`` of the IMU columns ``t_us`` (int, us) and
     ``f_up`` (float, m/s^2), from the IMU named ``source``; ``boot`` 0 and
-    ``recv_s`` the vehicle time in seconds, as every onboard sample."""
+    ``recv_s`` the vehicle time in seconds, as every onboard sample.
+    ``t_arr``, ``f_arr``: the same columns as int64 and float64 arrays (or
+    None), for the epoch builder's compiled pass to take as views."""
 
-    __slots__ = ("t_us", "f_up", "lo", "hi", "source")
+    __slots__ = ("t_us", "f_up", "lo", "hi", "source", "t_arr", "f_arr")
 
-    def __init__(self, t_us: List[int], f_up: List[float], lo: int, hi: int, source: str):
+    def __init__(self, t_us: List[int], f_up: List[float], lo: int, hi: int, source: str,
+                 t_arr: Optional[np.ndarray] = None, f_arr: Optional[np.ndarray] = None):
         self.t_us = t_us
         self.f_up = f_up
         self.lo = lo
         self.hi = hi
         self.source = source
+        self.t_arr = t_arr
+        self.f_arr = f_arr
 
     def __len__(self) -> int:
         return self.hi - self.lo

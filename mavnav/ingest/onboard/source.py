@@ -317,6 +317,12 @@ class _Builder:
         samples = st.samples
         imu = by_tag.get(_IMU)
         imu_name = self.rec.imu.name if self.rec.imu is not None else ""
+        # the IMU columns as arrays too (contiguous, writable, int64 and float64: the
+        # builder's kernel takes views of them; a copy only where they are not so already)
+        imu_t = imu_f = None
+        if imu is not None:
+            col = next(c for c in self.cols if c[1] == _IMU)
+            imu_t, imu_f = np.require(col[0], np.int64, "CW"), np.require(col[2], np.float64, "CW")
         for tag, i, verdict, gap_s, m in zip(tags, idx, verdicts, gaps, run_len):
             if m:
                 if gap_s > 0.0:
@@ -325,7 +331,7 @@ class _Builder:
                     st.events["Gap"] += 1
                     yield Gap(t_us=t, recv_s=t * 1e-6, boot=0, kind=IMU_STREAM, length_s=gap_s)
                 samples[IMU_STREAM] += m
-                yield ImuRun(imu[0], imu[2], i, i + m, imu_name)
+                yield ImuRun(imu[0], imu[2], i, i + m, imu_name, imu_t, imu_f)
                 continue
             c = by_tag[tag]
             t = c[0][i]
