@@ -221,12 +221,27 @@ def test_autopilot_home_origin_match_pyulog(name):
     else:
         assert rec.origin_alt_msl_m is None
     h = data.get(("home_position", 0))
-    ok = [] if h is None else [i for i in range(len(h["alt"])) if h["valid_alt"][i]]
+    # the first valid home in the log's time (a row stamped before the log began
+    # wraps to a negative int64): where the vehicle armed
+    ok = [] if h is None else [i for i in range(len(h["alt"]))
+                               if h["valid_alt"][i] and np.int64(h["timestamp"][i].astype(np.int64)) > 0]
     if ok:
-        last = max(ok, key=lambda i: h["timestamp"][i])
-        assert rec.home_alt_msl_m == pytest.approx(float(h["alt"][last]))
+        first = min(ok, key=lambda i: int(h["timestamp"][i]))
+        assert rec.home_alt_msl_m == pytest.approx(float(h["alt"][first]))
     else:
         assert rec.home_alt_msl_m is None
+
+
+@pytest.mark.realdata
+def test_a_vehicle_on_the_ground_at_the_start_is_at_its_home():
+    # aut_quad_v6xrt sets home five times; its last (503 s, after the landing) lies
+    # 0.5 m below the point it took off from: against it the vehicle read 0.5 m off on the ground
+    rec, data, _ = decoded("aut_quad_v6xrt.ulg")
+    d = data[("vehicle_local_position", 0)]
+    h = data[("home_position", 0)]
+    z0 = -float(d["z"][0])
+    assert abs(z0 - (rec.home_alt_msl_m - rec.origin_alt_msl_m)) < 0.2
+    assert abs(z0 - (float(h["alt"][-1]) - rec.origin_alt_msl_m)) > 0.4
 
 
 @pytest.mark.realdata

@@ -29,7 +29,13 @@ Topics and fields, PX4 1.9 to 1.17 (fields are looked up, not assumed):
   with ``z_valid`` (when logged); the origin altitude is ``ref_alt`` of the
   latest row whose reference is valid (``z_global``, else ``xy_global``, else
   ``ref_timestamp > 0``).
-* home: ``home_position`` ``alt`` (MSL) of the latest row with ``valid_alt``.
+* home: ``home_position`` ``alt`` (MSL) of the first row with ``valid_alt``
+  and a timestamp in the log: where the vehicle armed, as the DataFlash
+  reader takes ORGN's first AHRS home. PX4 sets home again at each arming
+  and, on some logs, after landing over an EKF height that has drifted: the
+  latest home of flug_log_13 lies 1.9 m below the point it took off from
+  (its ``-z`` on the ground -8.48 m, the first home's ``z`` 8.47 m, the
+  last's 6.59 m), so the vehicle read 1.9 m off the datum on the ground.
 * firmware from ``ver_sw_release`` (``sys_name``, default "PX4"), else the
   ``ver_sw`` git hash; vehicle from ``vehicle_status`` (``is_vtol``,
   ``vehicle_type`` or old ``is_rotary_wing``), else the ``MAV_TYPE`` parameter.
@@ -1110,6 +1116,14 @@ def _range(tp: _Topics, damage: List[str]) -> Optional[RangeSeries]:
     return RangeSeries(name, t, rng, lo[idx], hi[idx], valid[idx])
 
 
+def _first(t: np.ndarray, v: np.ndarray, ok: np.ndarray) -> Optional[float]:
+    ok = ok & np.isfinite(v) & (t > 0)
+    if not ok.any():
+        return None
+    j = np.flatnonzero(ok)
+    return float(v[j[np.argmin(t[j])]])
+
+
 def _latest(t: np.ndarray, v: np.ndarray, ok: np.ndarray) -> Optional[float]:
     ok = ok & np.isfinite(v) & (t > 0)
     if not ok.any():
@@ -1150,7 +1164,7 @@ def _home(tp: _Topics) -> Optional[float]:
     if d is None or "alt" not in d:
         return None
     ok = d["valid_alt"] != 0 if "valid_alt" in d else np.ones(_rows(d), dtype=bool)
-    return _latest(d["timestamp"].astype(np.int64), _f(d, "alt"), ok)
+    return _first(d["timestamp"].astype(np.int64), _f(d, "alt"), ok)
 
 
 def _firmware(u) -> str:
