@@ -1116,20 +1116,14 @@ def _range(tp: _Topics, damage: List[str]) -> Optional[RangeSeries]:
     return RangeSeries(name, t, rng, lo[idx], hi[idx], valid[idx])
 
 
-def _first(t: np.ndarray, v: np.ndarray, ok: np.ndarray) -> Optional[float]:
+def _latest(t: np.ndarray, v: np.ndarray, ok: np.ndarray, pick=np.argmax) -> Optional[float]:
+    """The value of the valid row stamped in the log's time that ``pick``
+    chooses by time: the latest (``np.argmax``) or the first (``np.argmin``)."""
     ok = ok & np.isfinite(v) & (t > 0)
     if not ok.any():
         return None
     j = np.flatnonzero(ok)
-    return float(v[j[np.argmin(t[j])]])
-
-
-def _latest(t: np.ndarray, v: np.ndarray, ok: np.ndarray) -> Optional[float]:
-    ok = ok & np.isfinite(v) & (t > 0)
-    if not ok.any():
-        return None
-    j = np.flatnonzero(ok)
-    return float(v[j[np.argmax(t[j])]])
+    return float(v[j[pick(t[j])]])
 
 
 def _autopilot(tp: _Topics, damage: List[str]) -> Tuple[Optional[AutopilotSeries], Optional[float]]:
@@ -1164,7 +1158,7 @@ def _home(tp: _Topics) -> Optional[float]:
     if d is None or "alt" not in d:
         return None
     ok = d["valid_alt"] != 0 if "valid_alt" in d else np.ones(_rows(d), dtype=bool)
-    return _first(d["timestamp"].astype(np.int64), _f(d, "alt"), ok)
+    return _latest(d["timestamp"].astype(np.int64), _f(d, "alt"), ok, pick=np.argmin)  # the first
 
 
 def _firmware(u) -> str:
