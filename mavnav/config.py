@@ -329,9 +329,9 @@ class AdaptiveFeatures(_Section):
     # (sigma_bb) is not a fault
     level_scale: bool = True
     # the baro's slow error u measured at run time from a short baro/INS second
-    # difference (monitor/baronoise.py): the level tests and the baro/INS test
-    # (and the baro's readmission against them) take it in place of the
-    # model's sigma_bb where the flight's baro is significantly noisier
+    # difference (monitor/baronoise.py): the level tests (and the baro's
+    # readmission against them) take it in place of the model's sigma_bb where
+    # the flight's baro is significantly noisier
     baro_u_measured: bool = True
     # the sudden-jump rule against the measured scatter of an aux stream's
     # sample-to-sample innovation changes, not the innovations' own sigma

@@ -1666,8 +1666,7 @@ class HypothesisLogic:
     def _ins_residual(self) -> Optional[tuple]:
         """The baro/INS statistic (m), its sigma and threshold (m) and its window (s),
         with the noise the test itself uses: the INS model's, the measured IMU
-        scatter beyond it, the baro's u as measured (monitor/baronoise.py; the
-        model's until the baro shows itself noisier), and the measured scale."""
+        scatter beyond it, and the measured scale."""
         model = self.bank.model
         res = self.ins.residual(self.baro_white_var, self._ins_psd(), model.baro_bias_rw_m_per_sqrt_s ** 2,
                                 self.baro_u.u_var_m2, model.gamma_bb_per_s)
