@@ -1669,7 +1669,7 @@ class HypothesisLogic:
         scatter beyond it, and the measured scale."""
         model = self.bank.model
         res = self.ins.residual(self.baro_white_var, self._ins_psd(), model.baro_bias_rw_m_per_sqrt_s ** 2,
-                                self.baro_u.u_var_m2, model.gamma_bb_per_s)
+                                model.sigma_bb_m ** 2, model.gamma_bb_per_s)
         if res is None:
             return None
         e, sigma, D = res
