@@ -110,9 +110,17 @@ class BaroConfig(BaroNoise):
     # samples) and held within [white_min_m, white_max_m]: real baros range
     # from 0.1 m (ArduPilot, 10 Hz) to 0.45 m (PX4 vehicle_air_data, 5 Hz),
     # see docs/error_models.md. white_max_m 0 turns it off (paper mode).
+    # Until five second differences exist the filters take white_prior_m (the
+    # noisiest real baros' 90th percentile, 0.43 m: a baro not yet measured is
+    # not trusted as a clean one), then the window's own estimate while it
+    # fills; the significance test against the model's u decides once it is
+    # full. Passing none until then, the first differenced rows of a noisy
+    # 5 Hz PX4 baro set a vehicle at rest climbing at 0.9 m/s
+    # (flug_1x_wo_Last_5m, BENCHMARKS.md session 25).
     white_min_m: float = Field(0.0, ge=0)
     white_max_m: float = Field(1.0, ge=0)
     white_window: int = Field(61, ge=5)
+    white_prior_m: float = Field(0.43, ge=0)
 
 
 class GnssConfig(GnssNoise):

@@ -341,7 +341,8 @@ class EpochBuilder:
         self._baro_d2_gm: deque[float] = deque(maxlen=self._baro_cfg.white_window)  # modelled u's share, m^2
         self._baro_last2: deque[float] = deque(maxlen=2)
         self._baro_last2_t: deque[int] = deque(maxlen=2)
-        self.baro_white_var_m2 = self._baro_cfg.white_min_m ** 2
+        c = self._baro_cfg
+        self.baro_white_var_m2 = min(max(c.white_prior_m, c.white_min_m), c.white_max_m) ** 2  # until measured
         self.last_dv_var_m2ps2 = 0.0
 
     @property
@@ -684,12 +685,17 @@ class EpochBuilder:
             if n >= 5:
                 s = (sorted(self._baro_d2) if d2s is None else d2s)[n // 2] / 0.6745
                 v_model = sum(self._baro_d2_gm) / n
-                # white noise beyond the model only when the data show it: the
-                # measured variance must exceed what the model's u alone gives
-                # at the BARO_WHITE_Z quantile of the estimate, else it is 0
+                # white noise beyond the model only when the data show it: once
+                # the window is full, the measured variance must exceed what the
+                # model's u alone gives at the BARO_WHITE_Z quantile of the
+                # estimate, else it is 0; while it fills, the estimate as it
+                # stands (before it, the prior: a baro not yet measured is no
+                # clean one; with no white noise passed, a noisy baro's first
+                # rows set the speed of a vehicle at rest)
                 nu = n / _MEDIAN_VAR_REL_SE ** 2
-                significant = s * s > chi2_ratio_quantile(nu, BARO_WHITE_Z) * v_model
-                var = (s * s - v_model) / 6.0 if significant else 0.0
+                filling = n < self._baro_d2.maxlen
+                significant = filling or s * s > chi2_ratio_quantile(nu, BARO_WHITE_Z) * v_model
+                var = max(s * s - v_model, 0.0) / 6.0 if significant else 0.0
                 sigma = min(max(math.sqrt(var), c.white_min_m), c.white_max_m)
                 self.baro_white_var_m2 = sigma * sigma
         last.append(h_m)

@@ -159,7 +159,9 @@ def test_fault_free_grid_flights_raise_nothing_on_the_shipped_model():
     for seed in (1, 2, 3, 4):
         s = _job("fault_free", seed)
         assert s["false_alarms"] == 0 and s["right"], (seed, s)
-        assert s["caution_frac"] < 0.04  # (seed 4's GNSS wanders near its drift test's threshold)
+        # seed 4's GNSS wanders near its drift test's threshold: a suspicion of 1.8 s
+        # (3.1 %), 2.8 s (4.7 %) since the baro's first rows carry a white-noise prior
+        assert s["caution_frac"] < 0.05
 
 
 @pytest.mark.slow
