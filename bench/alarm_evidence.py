@@ -23,6 +23,15 @@ For each alarm (a source going to ``alarm``), over ``[t - window, t + window]``:
 The autopilot's height follows the baro on ArduPilot logs and the GNSS on
 PX4 1.14's, so the columns say which sensor departs from the autopilot, not
 which is right; the comparison of the two sensors' changes is what points.
+Against a baro that the autopilot follows, the autopilot cannot show the
+baro's departure; where the receiver logs a Doppler velocity, the baro is
+also set against the Doppler's integral (``baro - Doppler``: the same change
+and usual over the window, the integral restarted across gaps), which
+neither the baro nor the GNSS altitude enters; ``raw departs`` is then
+``yes`` where either yardstick shows the baro departing (against the
+Doppler: by ``--factor`` its usual and ``--min-m``, and more than the GNSS
+altitude departs from the same integral). A GNSS alarm is not set against
+its own Doppler (that is the GNSS/Doppler test itself).
 """
 
 from __future__ import annotations
@@ -47,6 +56,10 @@ from realflights import find_flights  # noqa: E402
 from mavnav.audit import audit_file  # noqa: E402
 from mavnav.config import config_from_dict  # noqa: E402
 from mavnav.errors import MavnavError  # noqa: E402
+from mavnav.ingest import open_log  # noqa: E402
+from mavnav.samples import GnssHeight  # noqa: E402
+
+DOPPLER_MAX_GAP_S = 1.5  # the integral restarts across a longer gap (monitor.doppler_max_gap_s)
 
 # the height sensor an alarm blames, and the one it is set against
 # (columns of _Raw rows: t, baro, gnss, autopilot; the rangefinder's height is not among them)
@@ -78,14 +91,47 @@ def judge(source: str, reason: str, blamed: tuple[float, float], other: tuple[fl
     return "yes" if departs else "no"
 
 
+def doppler_integral(path: Path, cfg) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The receiver's Doppler vertical velocity integrated (trapezoid) over the
+    first boot, in vehicle seconds: NaN across a gap longer than
+    ``DOPPLER_MAX_GAP_S`` the integral restarts at a new unknown level: each
+    sample's segment is returned with it. Empty without a Doppler."""
+    t, v = [], []
+    try:
+        for s in open_log(str(path), cfg.ingest):
+            if type(s) is GnssHeight and s.boot == 0 and s.vel_up_mps is not None and s.vel_up_mps == s.vel_up_mps:
+                t.append(s.t_us * 1e-6)
+                v.append(s.vel_up_mps)
+    except MavnavError:
+        pass
+    if len(t) < 3:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    t_s, v_mps = np.asarray(t), np.asarray(v)
+    dt = np.diff(t_s)
+    step = 0.5 * (v_mps[1:] + v_mps[:-1]) * dt
+    seg = np.concatenate([[0], np.cumsum(dt > DOPPLER_MAX_GAP_S)])
+    integ = np.concatenate([[0.0], np.cumsum(np.where(dt > DOPPLER_MAX_GAP_S, 0.0, step))])
+    return t_s, integ, seg
+
+
 def _flight(path: Path, window_s: float, factor: float, min_m: float):
     raw = _Raw()
+    cfg = config_from_dict({})
     try:
-        res = audit_file(path, config_from_dict({}), extra_sinks=[raw])
+        res = audit_file(path, cfg, extra_sinks=[raw])
     except MavnavError as e:
         return path.name, [], str(e)
     a = np.array(raw.rows, float).reshape(-1, 4)
     t, ap = a[:, 0], a[:, 3]
+    td, hd, sd = doppler_integral(path, cfg)
+    if td.size:
+        dop = np.interp(t, td, hd, left=math.nan, right=math.nan)
+        seg = sd[np.clip(np.searchsorted(td, t, side="right") - 1, 0, len(td) - 1)]
+        # an epoch between two samples of different segments is in a gap: no yardstick
+        nxt = sd[np.clip(np.searchsorted(td, t, side="left"), 0, len(td) - 1)]
+        dop[seg != nxt] = math.nan
+    else:
+        dop, seg = np.full_like(t, math.nan), np.zeros(len(t))
     out = []
     for ev in res["alarms"]:
         if ev["state"] != "alarm" or ev["source"] not in BLAMED:
@@ -93,8 +139,35 @@ def _flight(path: Path, window_s: float, factor: float, min_m: float):
         src, t0 = ev["source"], ev["t_s"]
         blamed = departure(t, a[:, BLAMED[src]] - ap, t0, window_s)
         other = departure(t, a[:, OTHER[src]] - ap, t0, window_s)
-        out.append((t0, src, ev["reason"], blamed, other, judge(src, ev["reason"], blamed, other, factor, min_m)))
+        verdict = judge(src, ev["reason"], blamed, other, factor, min_m)
+        vs_dop = (math.nan, math.nan)
+        if src == "baro_ins" and np.isfinite(dop).sum() > 10:
+            vs_dop = departure_within(t, a[:, 1] - dop, seg, t0, window_s)
+            gnss_dop = departure_within(t, a[:, 2] - dop, seg, t0, window_s)
+            if verdict == "no" and judge(src, ev["reason"], vs_dop, gnss_dop, factor, min_m) == "yes":
+                verdict = "yes (Doppler)"
+        out.append((t0, src, ev["reason"], blamed, other, vs_dop, verdict))
     return path.name, out, None
+
+
+def departure_within(t_s: np.ndarray, d_m: np.ndarray, seg: np.ndarray, t0_s: float,
+                     window_s: float) -> tuple[float, float]:
+    """:func:`departure` with no change spanning two segments of the Doppler
+    integral: the largest change near ``t0_s`` within its own segment, the
+    median over every segment's own changes."""
+    near, usual = [], []
+    for k in np.unique(seg):
+        m = seg == k
+        ts, sw = swings_m(t_s[m], d_m[m], window_s)
+        if sw.size == 0:
+            continue
+        usual.append(sw)
+        close = (ts >= t0_s - window_s) & (ts <= t0_s)
+        if close.any():
+            near.append(float(sw[close].max()))
+    if not usual:
+        return math.nan, math.nan
+    return (max(near) if near else math.nan), float(np.median(np.concatenate(usual)))
 
 
 def main(argv=None) -> int:
@@ -109,16 +182,17 @@ def main(argv=None) -> int:
     print(f"{len(paths)} flights; window {args.window:g} s, departs: >= {args.factor:g}x usual and "
           f">= {args.min_m:g} m, more than the other sensor\n")
     print("| flight | t s | source | reason | blamed - autopilot: change / usual m "
-          "| other - autopilot: change / usual m | raw departs |")
-    print("|---|---|---|---|---|---|---|")
+          "| other - autopilot: change / usual m | baro - Doppler: change / usual m | raw departs |")
+    print("|---|---|---|---|---|---|---|---|")
     tally: dict = {}
     run = partial(_flight, window_s=args.window, factor=args.factor, min_m=args.min_m)
     with ProcessPoolExecutor(args.workers) as pool:
         for name, rows, err in pool.map(run, paths):
-            for t0, src, reason, (b, bu), (o, ou), verdict in rows:
+            for t0, src, reason, (b, bu), (o, ou), (d, du), verdict in rows:
                 tally[verdict] = tally.get(verdict, 0) + 1
+                dd = f"{d:.2f} / {du:.2f}" if d == d else "-"
                 print(f"| {name} | {t0:.1f} | {src} | {reason.split(';')[0][:90]} | {b:.2f} / {bu:.2f} "
-                      f"| {o:.2f} / {ou:.2f} | {verdict} |")
+                      f"| {o:.2f} / {ou:.2f} | {dd} | {verdict} |")
     print("\n" + ", ".join(f"{k}: {v}" for k, v in sorted(tally.items())) + f" (of {sum(tally.values())} alarms)")
     return 0
 
