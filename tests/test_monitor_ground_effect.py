@@ -76,3 +76,35 @@ def test_a_baro_ramp_is_alarmed_as_soon_with_the_watch(onset_rel_s):
     _, alarms_on = _audit(True, fault)
     assert any(src == "baro_ins" and st == "alarm" for _, src, _, st in alarms_on)
     assert alarms_on == alarms_off
+
+
+SITL = SHARED_FLIGHTLOGS / "SITL_wlichon_baseline_00000001.BIN"  # ArduCopter SITL, GPS VZ at 5 Hz, lifts off at 3.6 s
+
+
+def _baro_events(offset_m: float, window: bool):
+    """The baro's state changes on the SITL flight with its baro reading
+    ``offset_m`` off on the ground (1.0 s to the lift-off at 3.6 s: the
+    propellers' wash), its events in seconds from its first baro sample."""
+    from mavnav.samples import BaroHeight
+
+    cfg = config_from_dict({"monitor": {"features": {"ground_effect_window": window}}})
+    t0 = next(s.t_us for s in open_log(str(SITL), cfg.ingest) if isinstance(s, BaroHeight)) * 1e-6
+    fault = f"baro_step:magnitude={offset_m},onset={t0 + 1.0:.3f},duration=2.6"
+    samples = SampleFaults([parse_fault(fault)]).apply(open_log(str(SITL), cfg.ingest))
+    return [(round(ev.t_s - t0, 1), ev.state) for ev in run(list(samples), cfg, []).alarms
+            if ev.source == "baro_ins"]
+
+
+@pytest.mark.realdata
+@pytest.mark.skipif(not SITL.exists(), reason="no shared flight logs")
+def test_the_baro_doppler_window_just_up_from_the_ground_is_no_suspicion():
+    """The baro/Doppler test reads a 10 s window: for 10 s after the lift-off
+    its start still holds the baro read on the ground in the wash, and a
+    departure below the threshold there is ground effect, not a suspicion
+    (``features.ground_effect_window``). Without it the 1.6 m read on the
+    ground is a caution 11-15 s into the flight, 8 s up."""
+    assert [st for _, st in _baro_events(-1.6, False)] == ["caution", "nominal"]
+    assert _baro_events(-1.6, True) == []
+    # failures still count: 1.8 m is past the threshold, alarmed with or without it
+    assert _baro_events(-1.8, True) == _baro_events(-1.8, False)
+    assert "alarm" in [st for _, st in _baro_events(-1.8, True)]

@@ -147,6 +147,7 @@ class HypothesisLogic:
         self.coast_us = int(m.coast_reinit_s * 1e6)
         self.hold_restart_us = int(m.hold_restart_s * 1e6)
         self.warmup_us = int(m.warmup_s * 1e6)
+        self.baro_doppler_window_us = int(m.baro_doppler_window_s * 1e6)
         self.sudden_persist_us = int(m.sudden_jump_persist_s * 1e6)
         self.kink_margin = chi2_gate(m.kink_isolation_prob)
         self.t0_us = 0
@@ -194,6 +195,7 @@ class HypothesisLogic:
                                      learn_ground=not (at_datum or m.ground_at_reference))
         self.at_datum = at_datum  # the start on the ground at the datum: the ground's height is known there
         self.last_fused_m = math.nan
+        self.near_ground_us: Optional[int] = None  # the last epoch the fused height was near the ground
         self.refused: deque = deque()  # (t_us, kind, value_m, min_m, max_m, cos_tilt)
         self.range_valid: deque = deque()
         self.isolated_since: Optional[int] = None
@@ -1321,11 +1323,24 @@ class HypothesisLogic:
                     if v is not None] + self._level_verdicts(t, avail)
         if self.f.kink_isolation and self.slow_imu_hz is None:  # the INS witnesses the kinks
             verdicts += self._kink_verdicts(t, aux, (drift, baro_doppler))
-        if self.f.ground_effect_watch and self._near_ground():
-            verdicts = [v for v in verdicts if not (v.level == "suspect" and BARO_S in v.implicates)]
+        if self.f.ground_effect_watch:
+            near = self._near_ground(t)
+            if near or (self.f.ground_effect_window and self._window_from_ground(t)):
+                # near it, any baro suspicion; just up from it, the baro/Doppler window's
+                # alone, whose start still holds the baro read in the wash
+                verdicts = [v for v in verdicts if not (v.level == "suspect" and BARO_S in v.implicates
+                                                        and (near or v.test == "baro/Doppler"))]
         return verdicts, aux
 
-    def _near_ground(self) -> bool:
+    def _window_from_ground(self, t: int) -> bool:
+        """The baro/Doppler test's window (``baro_doppler_window_s``) reaches
+        back to where the fused height was near the ground the flight started
+        on, and the fused height is above it now (never below: a baro pulling
+        the output down is no take-off)."""
+        last = self.near_ground_us
+        return last is not None and t - last <= self.baro_doppler_window_us and self.last_fused_m > 0.0
+
+    def _near_ground(self, t: int) -> bool:
         """The fused height within ``ground_effect_height_m`` of the ground the
         flight started on (its datum): on the ground with the propellers
         turning, at take-off and at touchdown, where the baro reads their
@@ -1337,7 +1352,10 @@ class HypothesisLogic:
         suspicion (which is also what keeps the level it pulled the channel
         to from being given back as the baro's offset at readmission)."""
         h = self.last_fused_m
-        return self.at_datum and abs(h) < self.m.ground_effect_height_m
+        if self.at_datum and abs(h) < self.m.ground_effect_height_m:
+            self.near_ground_us = t
+            return True
+        return False
 
     def _slow_ins(self, v: Optional[Verdict]) -> Optional[Verdict]:
         """An INS test while the IMU runs below ``min_imu_rate_hz`` (the core's
