@@ -60,6 +60,7 @@ from mavnav.ingest import open_log  # noqa: E402
 from mavnav.samples import GnssHeight  # noqa: E402
 
 DOPPLER_MAX_GAP_S = 1.5  # the integral restarts across a longer gap (monitor.doppler_max_gap_s)
+FACTOR, MIN_M = 3.0, 1.0  # departs: this many times its usual change, and at least this many metres
 
 # the height sensor an alarm blames, and the one it is set against
 # (columns of _Raw rows: t, baro, gnss, autopilot; the rangefinder's height is not among them)
@@ -114,6 +115,42 @@ def doppler_integral(path: Path, cfg) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return t_s, integ, seg
 
 
+def doppler_yardstick(path: Path, cfg, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The Doppler integral at the epochs ``t`` (NaN in a gap or without a
+    Doppler) and each epoch's segment of it."""
+    td, hd, sd = doppler_integral(path, cfg)
+    if not td.size:
+        return np.full_like(t, math.nan), np.zeros(len(t))
+    dop = np.interp(t, td, hd, left=math.nan, right=math.nan)
+    seg = sd[np.clip(np.searchsorted(td, t, side="right") - 1, 0, len(td) - 1)]
+    # an epoch between two samples of different segments is in a gap: no yardstick
+    nxt = sd[np.clip(np.searchsorted(td, t, side="left"), 0, len(td) - 1)]
+    dop[seg != nxt] = math.nan
+    return dop, seg
+
+
+def evidence_at(src: str, reason: str, t0: float, a: np.ndarray, dop: np.ndarray, seg: np.ndarray,
+                window_s: float, factor: float, min_m: float):
+    """``(blamed, other, baro - Doppler, verdict)`` for a sensor blamed at ``t0``
+    (``a``: the epochs' t, baro, GNSS, autopilot columns)."""
+    t, ap = a[:, 0], a[:, 3]
+    blamed = departure(t, a[:, BLAMED[src]] - ap, t0, window_s)
+    other = departure(t, a[:, OTHER[src]] - ap, t0, window_s)
+    verdict = judge(src, reason, blamed, other, factor, min_m)
+    vs_dop = (math.nan, math.nan)
+    if src == "baro_ins" and np.isfinite(dop).sum() > 10:
+        vs_dop = departure_within(t, a[:, 1] - dop, seg, t0, window_s)
+        gnss_dop = departure_within(t, a[:, 2] - dop, seg, t0, window_s)
+        if verdict == "no" and judge(src, reason, vs_dop, gnss_dop, factor, min_m) == "yes":
+            verdict = "yes (Doppler)"
+    return blamed, other, vs_dop, verdict
+
+
+def judge_at(src: str, reason: str, t0: float, a: np.ndarray, dop: np.ndarray, seg: np.ndarray,
+             window_s: float, factor: float, min_m: float) -> str:
+    return evidence_at(src, reason, t0, a, dop, seg, window_s, factor, min_m)[3]
+
+
 def _flight(path: Path, window_s: float, factor: float, min_m: float):
     raw = _Raw()
     cfg = config_from_dict({})
@@ -122,30 +159,13 @@ def _flight(path: Path, window_s: float, factor: float, min_m: float):
     except MavnavError as e:
         return path.name, [], str(e)
     a = np.array(raw.rows, float).reshape(-1, 4)
-    t, ap = a[:, 0], a[:, 3]
-    td, hd, sd = doppler_integral(path, cfg)
-    if td.size:
-        dop = np.interp(t, td, hd, left=math.nan, right=math.nan)
-        seg = sd[np.clip(np.searchsorted(td, t, side="right") - 1, 0, len(td) - 1)]
-        # an epoch between two samples of different segments is in a gap: no yardstick
-        nxt = sd[np.clip(np.searchsorted(td, t, side="left"), 0, len(td) - 1)]
-        dop[seg != nxt] = math.nan
-    else:
-        dop, seg = np.full_like(t, math.nan), np.zeros(len(t))
+    dop, seg = doppler_yardstick(path, cfg, a[:, 0])
     out = []
     for ev in res["alarms"]:
         if ev["state"] != "alarm" or ev["source"] not in BLAMED:
             continue
         src, t0 = ev["source"], ev["t_s"]
-        blamed = departure(t, a[:, BLAMED[src]] - ap, t0, window_s)
-        other = departure(t, a[:, OTHER[src]] - ap, t0, window_s)
-        verdict = judge(src, ev["reason"], blamed, other, factor, min_m)
-        vs_dop = (math.nan, math.nan)
-        if src == "baro_ins" and np.isfinite(dop).sum() > 10:
-            vs_dop = departure_within(t, a[:, 1] - dop, seg, t0, window_s)
-            gnss_dop = departure_within(t, a[:, 2] - dop, seg, t0, window_s)
-            if verdict == "no" and judge(src, ev["reason"], vs_dop, gnss_dop, factor, min_m) == "yes":
-                verdict = "yes (Doppler)"
+        blamed, other, vs_dop, verdict = evidence_at(src, ev["reason"], t0, a, dop, seg, window_s, factor, min_m)
         out.append((t0, src, ev["reason"], blamed, other, vs_dop, verdict))
     return path.name, out, None
 
@@ -174,8 +194,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--window", type=float, default=10.0, help="seconds either side of the alarm")
-    ap.add_argument("--factor", type=float, default=3.0, help="times the sensor's usual change")
-    ap.add_argument("--min-m", type=float, default=1.0, help="and at least this many metres")
+    ap.add_argument("--factor", type=float, default=FACTOR, help="times the sensor's usual change")
+    ap.add_argument("--min-m", type=float, default=MIN_M, help="and at least this many metres")
     args = ap.parse_args(argv)
     announce("alarm_evidence.py")
     paths = [p for group in find_flights().values() for p in group]

@@ -41,3 +41,23 @@ def test_without_samples_near_the_alarm_there_is_no_reading():
     t = np.arange(0.0, 20.0, 0.2)
     near, usual = ae.departure_within(t, np.zeros_like(t), np.zeros_like(t), 80.0, 10.0)
     assert math.isnan(near) and usual == 0.0
+
+
+def test_a_baro_the_autopilot_follows_departs_only_against_the_doppler():
+    """On an ArduPilot log the autopilot's height follows the baro: a baro
+    that steps 2 m shows nothing against it, and is seen against the Doppler
+    integral (the GNSS altitude, following the Doppler, does not depart)."""
+    t = np.arange(0.0, 100.0, 0.2)
+    true_m = 0.5 * np.sin(0.1 * t)
+    baro = true_m + np.where(t >= 50.0, 2.0, 0.0)
+    a = np.column_stack([t, baro, true_m + 0.05 * np.cos(t), baro + 0.01])  # t, baro, GNSS, autopilot
+    seg = np.zeros_like(t)
+    no_doppler = np.full_like(t, math.nan)
+    assert ae.evidence_at("baro_ins", "baro stepped", 55.0, a, no_doppler, seg, 10.0, ae.FACTOR, ae.MIN_M)[3] == "no"
+    blamed, other, vs_dop, verdict = ae.evidence_at("baro_ins", "baro stepped", 55.0, a, true_m.copy(), seg, 10.0,
+                                                    ae.FACTOR, ae.MIN_M)
+    assert verdict == "yes (Doppler)"
+    assert vs_dop[0] == pytest.approx(2.0, abs=0.1)
+    # an INS alarm is read from its reason, whatever the heights do
+    assert ae.judge_at("baro_ins", "INS velocity changed +2 m/s", 55.0, a, true_m.copy(), seg, 10.0,
+                       ae.FACTOR, ae.MIN_M) == "INS"
