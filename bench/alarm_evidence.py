@@ -94,9 +94,10 @@ def judge(source: str, reason: str, blamed: tuple[float, float], other: tuple[fl
 
 def doppler_integral(path: Path, cfg) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The receiver's Doppler vertical velocity integrated (trapezoid) over the
-    first boot, in vehicle seconds: NaN across a gap longer than
-    ``DOPPLER_MAX_GAP_S`` the integral restarts at a new unknown level: each
-    sample's segment is returned with it. Empty without a Doppler."""
+    first boot: ``(t_s, integral_m, segment)``. Across a gap longer than
+    ``DOPPLER_MAX_GAP_S`` the integral goes on from an unknown level, so each
+    sample carries its segment (changes are read within one). Empty without a
+    Doppler."""
     t, v = [], []
     try:
         for s in open_log(str(path), cfg.ingest):
@@ -144,11 +145,6 @@ def evidence_at(src: str, reason: str, t0: float, a: np.ndarray, dop: np.ndarray
         if verdict == "no" and judge(src, reason, vs_dop, gnss_dop, factor, min_m) == "yes":
             verdict = "yes (Doppler)"
     return blamed, other, vs_dop, verdict
-
-
-def judge_at(src: str, reason: str, t0: float, a: np.ndarray, dop: np.ndarray, seg: np.ndarray,
-             window_s: float, factor: float, min_m: float) -> str:
-    return evidence_at(src, reason, t0, a, dop, seg, window_s, factor, min_m)[3]
 
 
 def _flight(path: Path, window_s: float, factor: float, min_m: float):

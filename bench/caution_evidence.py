@@ -101,8 +101,8 @@ def _flight(path: Path):
             by[test] += held_s
             if x["source"] in ("gnss", "baro_ins"):
                 held_all += held_s
-                verdict = ae.judge_at(x["source"], x["reason"], x["t_s"], a, dop, seg, SWING_WINDOW_S,
-                                      ae.FACTOR, ae.MIN_M)
+                verdict = ae.evidence_at(x["source"], x["reason"], x["t_s"], a, dop, seg, SWING_WINDOW_S,
+                                         ae.FACTOR, ae.MIN_M)[3]
                 shown += held_s if verdict.startswith("yes") else 0.0
     return path.name, res, (by.most_common(1)[0][0] if by else "-", _departure(t, g, ap), _departure(t, b, ap),
                             (shown, held_all))

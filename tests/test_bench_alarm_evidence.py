@@ -59,5 +59,5 @@ def test_a_baro_the_autopilot_follows_departs_only_against_the_doppler():
     assert verdict == "yes (Doppler)"
     assert vs_dop[0] == pytest.approx(2.0, abs=0.1)
     # an INS alarm is read from its reason, whatever the heights do
-    assert ae.judge_at("baro_ins", "INS velocity changed +2 m/s", 55.0, a, true_m.copy(), seg, 10.0,
-                       ae.FACTOR, ae.MIN_M) == "INS"
+    assert ae.evidence_at("baro_ins", "INS velocity changed +2 m/s", 55.0, a, true_m.copy(), seg, 10.0,
+                          ae.FACTOR, ae.MIN_M)[3] == "INS"

@@ -1350,7 +1350,8 @@ class HypothesisLogic:
         height more than that below the ground is not near it: that is a baro
         pulling the output down, and a dive fault would waive its own
         suspicion (which is also what keeps the level it pulled the channel
-        to from being given back as the baro's offset at readmission)."""
+        to from being given back as the baro's offset at readmission).
+        Near it, ``t`` is noted for :meth:`_window_from_ground`."""
         h = self.last_fused_m
         if self.at_datum and abs(h) < self.m.ground_effect_height_m:
             self.near_ground_us = t
